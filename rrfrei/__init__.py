@@ -1,0 +1,46 @@
+"""rrfrei: performance-based seismic analysis of buildings on low-cost isolators.
+
+Layers (arrows point down only): CLI (``rrfrei.cli``) -> workflows (``calibrate``,
+``compare``, ``diagnose_gap``, ``structures.propagate``) -> models (frozen dataclasses:
+``LawSpec``, ``ShearTest``, ...) -> Numba kernels (``rrfrei.laws.kernel``).
+
+Units: kN, m, s, tonnes throughout.
+
+The public names below are imported lazily, so ``import rrfrei`` is cheap.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+__version__ = "0.1.0"
+
+_LAZY = {
+    "laws": ("rrfrei.laws", None),
+    "simulate_force": ("rrfrei.simulate", "simulate_force"),
+    "protocols": ("rrfrei.protocols", None),
+    "energy": ("rrfrei.energy", None),
+    "read_test": ("rrfrei.io", "read_test"),
+    "ShearTest": ("rrfrei.io", "ShearTest"),
+    "load_test": ("rrfrei.io", "load_test"),
+    "calibrate": ("rrfrei.calibration", "calibrate"),
+    "Calibration": ("rrfrei.calibration", "Calibration"),
+    "compare": ("rrfrei.calibration", "compare"),
+    "diagnose_gap": ("rrfrei.gap", "diagnose_gap"),
+}
+
+__all__ = ["__version__", *_LAZY]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        module, attr = _LAZY[name]
+        mod = importlib.import_module(module)
+        value = mod if attr is None else getattr(mod, attr)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'rrfrei' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(__all__)

@@ -1,0 +1,77 @@
+"""ElastomericBearingPlasticity (OpenSees v3.7.1, ``ElastomericBearingPlasticity2d.cpp``).
+
+Elastic-plastic hysteresis plus linear and nonlinear hardening::
+
+    k0 = (1 - alpha1) k_init,  k2 = alpha1 k_init,  k3 = alpha2 k_init
+    q_tr = k0 (u - u_p,C),     Y = |q_tr| - qd
+    elastic (Y <= 0):  F = q_tr + k2 u + k3 sgn(u) |u|^mu
+    plastic (Y > 0):   u_p = u_p,C + (Y / k0) sgn(q_tr)
+                       F = qd sgn(q_tr) + k2 u + k3 sgn(u) |u|^mu
+
+(update, l.450-476).  The return mapping is exact, so the result does not depend on the step
+size beyond how the history is sampled.  Energy per cycle at amplitude d: 4 qd (d - u_y),
+u_y = qd / k0.
+
+State: ``[u_p]`` (plastic displacement).  As in OpenSees the trial u_p is not reset in the
+elastic branch ("sticky" trial variable).
+"""
+
+import numpy as np
+from numba import njit
+
+from rrfrei.laws._util import powabs, sgn
+from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
+
+KERNEL_ID = 1
+
+
+@njit(cache=True)
+def step(p, sc, u, v, dt, st):
+    k_init = p[0]
+    qd = p[1]
+    k0 = (1.0 - p[2]) * k_init
+    k2 = p[2] * k_init
+    k3 = p[3] * k_init
+    mu = p[4]
+    q_tr = k0 * (u - sc[0])
+    y = abs(q_tr) - qd
+    nl_f = 0.0
+    nl_k = 0.0
+    if k3 != 0.0:
+        nl_f = k3 * sgn(u) * powabs(u, mu)
+        nl_k = k3 * mu * powabs(u, mu - 1.0)
+    if y <= 0.0:
+        return q_tr + k2 * u + nl_f, k0 + k2 + nl_k, 0
+    s = sgn(q_tr)
+    st[0] = sc[0] + (y / k0) * s
+    return qd * s + k2 * u + nl_f, k2 + nl_k, 0
+
+
+def _check(p: np.ndarray) -> None:
+    if p[2] >= 1.0:
+        raise ValueError(f"law 'plasticity': alpha1 = {p[2]:g} must be < 1 (k0 = (1-alpha1) k_init > 0)")
+
+
+PARAMS = (
+    ParamSpec("k_init", "kN/m", 1e-6, 1e9, "initial elastic shear stiffness",
+              Prior("loguniform", 10.0, 1e6)),
+    ParamSpec("qd", "kN", 0.0, 1e6, "characteristic strength", Prior("loguniform", 1e-2, 1e3)),
+    ParamSpec("alpha1", "-", 0.0, 0.9999, "post-yield stiffness ratio (linear part)",
+              Prior("uniform", 0.0, 0.99)),
+    ParamSpec("alpha2", "-", -1.0, 1.0, "post-yield ratio of the nonlinear hardening term",
+              Prior("normal", 0.0, 0.1)),
+    ParamSpec("mu", "-", 1.0, 10.0, "exponent of the nonlinear hardening term",
+              Prior("uniform", 1.0, 5.0)),
+)
+
+SPEC = register(
+    LawSpec(
+        name="plasticity",
+        kernel_id=KERNEL_ID,
+        params=PARAMS,
+        state_size=1,
+        description="OpenSees ElastomericBearingPlasticity: elastic-plastic with hardening.",
+        opensees_element="elastomericBearingPlasticity",
+        check=_check,
+    )
+)

@@ -1,0 +1,308 @@
+"""Registry of isolator shear laws: parameter specs, units, bounds and default priors.
+
+Everything downstream (simulation, calibration, propagation, gap diagnosis, CLI) reads a law's
+parameter names, units, bounds and priors from its :class:`LawSpec`; nothing switches on law
+names by hand.
+
+Kernel contract
+---------------
+Every law module provides a Numba step kernel::
+
+    step(p, sc, u, v, dt, st) -> (force, tangent, status)
+
+* ``p``      float64 array of the law's parameters, in ``LawSpec.param_names`` order;
+* ``sc``     committed state (read only), float64 array of length ``LawSpec.state_size``;
+* ``u``      trial shear displacement [m];
+* ``v``      trial shear velocity [m/s] (0 under static displacement control);
+* ``dt``     time step since the last commit [s] (1.0 under static control, as in OpenSees);
+* ``st``     trial state: on entry the previous trial (OpenSees keeps trial variables between
+  ``update()`` calls), on exit the new trial state;
+* returns the shear force [kN], the tangent dF/du [kN/m] and a status (0 = converged, < 0 =
+  failure; see :data:`STATUS_MESSAGES`).
+
+A driver commits by copying ``st`` into ``sc`` once a step has converged.  The kernels are
+dispatched by integer ``code`` arrays built here (:attr:`LawSpec.code`), see
+:mod:`rrfrei.laws.kernel`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Layout of the int64 dispatch code of a (possibly augmented) law.
+CODE_LEN = 16
+MAX_EFFECTS = 4
+# code[0] base law kernel id, code[1] number of base params, code[2] base state size,
+# code[3] number of effects, then per effect i: code[4+3i] effect id, code[5+3i] offset of its
+# params in p, code[6+3i] offset of its state in the state vector.
+
+STATUS_MESSAGES = {
+    0: "converged",
+    -1: "singular Newton derivative in the law's local solve",
+    -2: "the law's local Newton iteration did not converge",
+    -3: "non-finite force or state",
+    -4: "global Newton iteration did not converge even after step subdivision",
+}
+
+
+@dataclass(frozen=True)
+class Prior:
+    """A univariate prior.
+
+    ``kind`` is one of ``uniform`` (on [a, b]), ``loguniform`` (on [a, b], a > 0),
+    ``normal`` (mean a, sd b), ``lognormal`` (median a, log-sd b), ``halfnormal`` (scale a).
+    """
+
+    kind: str
+    a: float
+    b: float = 0.0
+
+    _KINDS = ("uniform", "loguniform", "normal", "lognormal", "halfnormal")
+
+    def __post_init__(self) -> None:
+        if self.kind not in self._KINDS:
+            raise ValueError(f"prior kind {self.kind!r} unknown; expected one of {self._KINDS}")
+        if self.kind in ("uniform", "loguniform") and not self.b > self.a:
+            raise ValueError(f"{self.kind} prior needs a < b, got a={self.a}, b={self.b}")
+        if self.kind == "loguniform" and self.a <= 0:
+            raise ValueError(f"loguniform prior needs a > 0, got a={self.a}")
+        if self.kind in ("normal", "lognormal") and self.b <= 0:
+            raise ValueError(f"{self.kind} prior needs a positive spread b, got {self.b}")
+        if self.kind == "lognormal" and self.a <= 0:
+            raise ValueError(f"lognormal prior needs a positive median a, got {self.a}")
+        if self.kind == "halfnormal" and self.a <= 0:
+            raise ValueError(f"halfnormal prior needs a positive scale a, got {self.a}")
+
+    def logpdf(self, x: np.ndarray | float) -> np.ndarray:
+        """Log density (up to no constant: normalised) at ``x``; -inf outside the support."""
+        x = np.asarray(x, dtype=float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if self.kind == "uniform":
+                out = np.where((x >= self.a) & (x <= self.b), -math.log(self.b - self.a), -np.inf)
+            elif self.kind == "loguniform":
+                out = np.where(
+                    (x >= self.a) & (x <= self.b),
+                    -np.log(x) - math.log(math.log(self.b / self.a)),
+                    -np.inf,
+                )
+            elif self.kind == "normal":
+                z = (x - self.a) / self.b
+                out = -0.5 * z * z - math.log(self.b * math.sqrt(2 * math.pi))
+            elif self.kind == "lognormal":
+                lx = np.log(np.where(x > 0, x, 1.0))
+                z = (lx - math.log(self.a)) / self.b
+                out = np.where(
+                    x > 0, -0.5 * z * z - lx - math.log(self.b * math.sqrt(2 * math.pi)), -np.inf
+                )
+            else:  # halfnormal
+                z = x / self.a
+                out = np.where(
+                    x >= 0, -0.5 * z * z + math.log(math.sqrt(2 / math.pi) / self.a), -np.inf
+                )
+        return out
+
+    def sample(self, rng: np.random.Generator, size: int | tuple[int, ...]) -> np.ndarray:
+        """Draw ``size`` samples with the generator ``rng``."""
+        if self.kind == "uniform":
+            return rng.uniform(self.a, self.b, size)
+        if self.kind == "loguniform":
+            return np.exp(rng.uniform(math.log(self.a), math.log(self.b), size))
+        if self.kind == "normal":
+            return rng.normal(self.a, self.b, size)
+        if self.kind == "lognormal":
+            return self.a * np.exp(rng.normal(0.0, self.b, size))
+        return np.abs(rng.normal(0.0, self.a, size))
+
+    @classmethod
+    def from_mapping(cls, data: Mapping) -> Prior:
+        """Build from ``{"kind": ..., "a": ..., "b": ...}`` (as in a priors TOML table)."""
+        try:
+            return cls(str(data["kind"]), float(data["a"]), float(data.get("b", 0.0)))
+        except KeyError as exc:
+            raise ValueError(f"prior {dict(data)!r} lacks the field {exc.args[0]!r}") from None
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One law parameter.
+
+    ``lower``/``upper`` are physical bounds (inclusive); ``prior`` the default calibration prior;
+    ``geometry`` marks parameters fixed from the bearing drawing (never sampled);
+    ``default`` is the value of an optional parameter when it is not given.
+    """
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    description: str
+    prior: Prior | None = None
+    geometry: bool = False
+    default: float | None = None
+
+    @property
+    def optional(self) -> bool:
+        return self.default is not None
+
+
+@dataclass(frozen=True)
+class LawSpec:
+    """A shear law: its parameters, state size and kernel id.
+
+    Parameters are in kN, m, s.  ``check`` is an optional callable taking the packed parameter
+    array and raising ValueError for cross-parameter constraints.
+    """
+
+    name: str
+    kernel_id: int
+    params: tuple[ParamSpec, ...]
+    state_size: int
+    description: str
+    opensees_element: str = ""
+    uses_velocity: bool = False
+    check: Callable[[np.ndarray], None] | None = field(default=None, compare=False, repr=False)
+    effects: tuple[str, ...] = ()
+    code: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
+    initial_state: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.code is None:
+            code = np.zeros(CODE_LEN, dtype=np.int64)
+            code[0] = self.kernel_id
+            code[1] = len(self.params)
+            code[2] = self.state_size
+            object.__setattr__(self, "code", code)
+        self.code.setflags(write=False)
+        if self.initial_state is None:
+            object.__setattr__(self, "initial_state", np.zeros(self.state_size))
+        self.initial_state.setflags(write=False)
+
+    # --- names -------------------------------------------------------------------------
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+    @property
+    def free_names(self) -> tuple[str, ...]:
+        """Parameters calibrated by default: neither geometry nor optional."""
+        return tuple(p.name for p in self.params if not p.geometry and not p.optional)
+
+    @property
+    def geometry_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params if p.geometry)
+
+    def param(self, name: str) -> ParamSpec:
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise ValueError(
+            f"law {self.name!r} has no parameter {name!r}; its parameters are "
+            f"{', '.join(self.param_names)}"
+        )
+
+    # --- validation ------------------------------------------------------------------------
+    def pack(self, params: Mapping[str, float] | np.ndarray | list | tuple) -> np.ndarray:
+        """Validate parameters and return them as a float64 array in kernel order.
+
+        A mapping must name every required parameter (optional ones take their default);
+        a sequence must give all parameters in :attr:`param_names` order.  Unknown, missing,
+        non-finite and out-of-bounds values raise ValueError naming the parameter, its value and
+        the accepted range.
+        """
+        names = self.param_names
+        if isinstance(params, Mapping):
+            extra = [k for k in params if k not in names]
+            if extra:
+                raise ValueError(
+                    f"law {self.name!r} has no parameter(s) {', '.join(map(repr, extra))}; "
+                    f"accepted: {', '.join(names)}"
+                )
+            values = []
+            for p in self.params:
+                if p.name in params:
+                    values.append(params[p.name])
+                elif p.optional:
+                    values.append(p.default)
+                else:
+                    missing = [q.name for q in self.params if q.name not in params and not q.optional]
+                    raise ValueError(
+                        f"law {self.name!r} is missing parameter(s) {', '.join(missing)}; "
+                        f"required: {', '.join(q.name for q in self.params if not q.optional)}"
+                    )
+            arr = np.asarray(values, dtype=float)
+        else:
+            arr = np.asarray(params, dtype=float).ravel()
+            if arr.size != len(names):
+                raise ValueError(
+                    f"law {self.name!r} takes {len(names)} parameters ({', '.join(names)}), "
+                    f"got {arr.size}"
+                )
+        for p, x in zip(self.params, arr):
+            if not math.isfinite(x):
+                raise ValueError(f"law {self.name!r}: parameter {p.name} = {x} is not finite")
+            if not (p.lower <= x <= p.upper):
+                raise ValueError(
+                    f"law {self.name!r}: parameter {p.name} = {x:g} {p.unit} is outside its "
+                    f"physical bounds [{p.lower:g}, {p.upper:g}] {p.unit}"
+                )
+        if self.check is not None:
+            self.check(arr)
+        return arr
+
+    def as_dict(self, arr: np.ndarray) -> dict[str, float]:
+        """Inverse of :meth:`pack`."""
+        return {n: float(x) for n, x in zip(self.param_names, np.asarray(arr, dtype=float))}
+
+    def bounds(self, names: tuple[str, ...] | None = None) -> np.ndarray:
+        """(n, 2) array of physical bounds for ``names`` (default: all parameters)."""
+        names = self.param_names if names is None else names
+        return np.array([[self.param(n).lower, self.param(n).upper] for n in names], dtype=float)
+
+
+_REGISTRY: dict[str, LawSpec] = {}
+
+
+def register(spec: LawSpec) -> LawSpec:
+    """Add a law to the registry (names are unique)."""
+    if spec.name in _REGISTRY and _REGISTRY[spec.name] is not spec:
+        raise ValueError(f"a law named {spec.name!r} is already registered")
+    _REGISTRY[spec.name] = spec
+    return spec
+
+
+def get(name: str | LawSpec) -> LawSpec:
+    """Return the spec of law ``name``.
+
+    Augmented laws are named ``base+effect[+effect...]`` (e.g. ``bouc_wen+rate``); they are
+    composed on first use from the effect catalogue (:mod:`rrfrei.laws.effects`).
+    """
+    if isinstance(name, LawSpec):
+        return name
+    if not isinstance(name, str):
+        raise ValueError(f"a law name must be a string, got {name!r}")
+    key = name.strip()
+    if key in _REGISTRY:
+        return _REGISTRY[key]
+    if "+" in key:
+        from rrfrei.laws import effects
+
+        base, *effs = [s.strip() for s in key.split("+")]
+        spec = effects.compose(get(base), effs)
+        _REGISTRY[key] = spec
+        return spec
+    raise ValueError(f"unknown law {name!r}; available laws: {', '.join(names())}")
+
+
+def names(*, include_linear: bool = True) -> tuple[str, ...]:
+    """Names of the registered base laws."""
+    out = [n for n, s in _REGISTRY.items() if not s.effects]
+    if not include_linear:
+        out = [n for n in out if n != "linear"]
+    return tuple(out)
+
+
+OPENSEES_LAWS = ("plasticity", "bouc_wen", "elastomeric_x", "hdr")

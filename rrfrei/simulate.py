@@ -1,0 +1,89 @@
+"""Public entry point for driving a law along a displacement history."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from rrfrei.laws import STATUS_MESSAGES, LawSpec, get
+from rrfrei.laws.kernel import run_history
+
+
+def as_history(values, name: str, *, min_len: int = 1) -> np.ndarray:
+    """Validate a finite 1-D float array (``name`` is used in the error message)."""
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a 1-D array of numbers, got {type(values).__name__}") from None
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be a 1-D array, got shape {arr.shape}")
+    if arr.size < min_len:
+        raise ValueError(f"{name} must have at least {min_len} value(s), got {arr.size}")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise ValueError(f"{name} is not finite at index {bad[0]} (value {arr[bad[0]]})")
+    return np.ascontiguousarray(arr)
+
+
+def simulate_force(
+    law: str | LawSpec,
+    params: Mapping[str, float] | np.ndarray,
+    disp,
+    *,
+    time=None,
+    substeps: int = 1,
+    return_tangent: bool = False,
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """Shear force [kN] of ``law`` along the displacement history ``disp`` [m].
+
+    Parameters
+    ----------
+    law : name of a registered law (``rrfrei.laws.names()``), possibly augmented
+        (``"bouc_wen+rate"``), or its :class:`LawSpec`.
+    params : parameter values by name (kN, m, s), or an array in ``spec.param_names`` order.
+    disp : displacement history [m]; the law starts virgin at zero displacement.
+    time : sample times [s], strictly increasing; needed only by velocity-dependent terms.
+        Without it the history is quasi-static (velocity 0, dt = 1 as in OpenSees statics).
+    substeps : 1 reproduces OpenSees (one implicit update per increment, so the result depends on
+        the sampling); n > 1 splits every increment into n equal parts for a step-size-converged
+        answer.
+    return_tangent : also return the tangent stiffness history [kN/m].
+
+    Raises
+    ------
+    ValueError
+        unknown law, bad parameters, non-finite or non-1-D displacement, bad time, or a local
+        solve that failed (the message names the sample index and the state).
+    """
+    spec = get(law)
+    p = spec.pack(params)
+    u = as_history(disp, "disp")
+    if not isinstance(substeps, (int, np.integer)) or substeps < 1:
+        raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+    if time is None:
+        t = np.zeros_like(u)
+        use_time = False
+    else:
+        t = as_history(time, "time")
+        if t.size != u.size:
+            raise ValueError(f"time has {t.size} values but disp has {u.size}")
+        dt = np.diff(t)
+        if np.any(dt <= 0):
+            i = int(np.flatnonzero(dt <= 0)[0])
+            raise ValueError(
+                f"time must be strictly increasing; time[{i + 1}] = {t[i + 1]} <= time[{i}] = {t[i]}"
+            )
+        use_time = True
+    force = np.empty_like(u)
+    tangent = np.empty_like(u)
+    status, idx = run_history(
+        spec.code, p, np.array(spec.initial_state), u, t, use_time, int(substeps), force, tangent
+    )
+    if status != 0:
+        raise ValueError(
+            f"law {spec.name!r} failed at sample {idx} (disp = {u[idx]:.6g} m): "
+            f"{STATUS_MESSAGES.get(int(status), f'status {status}')}; parameters "
+            f"{spec.as_dict(p)}"
+        )
+    return (force, tangent) if return_tangent else force
