@@ -31,7 +31,6 @@ rubber fit; the page says so.
 from __future__ import annotations
 
 import importlib
-import math
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -484,9 +483,3 @@ def _tqdm(iterable, progress: bool, **kw):
         return iterable
     return tqdm(iterable, **kw)
 
-
-def _is_finite_number(x: Any) -> bool:
-    try:
-        return math.isfinite(float(x))
-    except (TypeError, ValueError):
-        return False
