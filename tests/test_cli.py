@@ -1,0 +1,167 @@
+"""CLI-wide behaviour, run as a user runs it (subprocesses):
+
+* every command's ``--help`` shows an example;
+* a user error (wrong path, malformed file, unknown law, unknown record, bad parameter) gives ONE
+  line on stderr and exit status 2, never a traceback.
+
+All subprocesses of this module run concurrently in one fixture (they are independent), which keeps
+the module to a few seconds.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from rrfrei.cli import COMMANDS
+
+RRFREI = [sys.executable, "-m", "rrfrei.cli"]
+RUBBER = [sys.executable, "-m", "rubber"]
+
+# command name as typed (module names use '_', command names '-')
+COMMAND_NAMES = tuple(c.replace("_", "-") for c in COMMANDS)
+RUBBER_COMMANDS = ("fit", "predict", "cases")
+
+
+def _files(root: Path) -> dict[str, Path]:
+    """Bad inputs a user could hand over."""
+    root.mkdir(parents=True, exist_ok=True)
+    malformed = root / "malformed.csv"
+    malformed.write_text("time_s,disp_mm,force_kN\n0.0,0.0,0.0\n0.05,abc,1.0\n0.10,0.2,\n")
+    garbage_nc = root / "posterior.nc"
+    garbage_nc.write_text("this is not a netCDF file\n")
+    bad_toml = root / "building.toml"
+    bad_toml.write_text("story_masses = [1.0, \n")
+    rubber_bad = root / "rubber_bad.csv"
+    rubber_bad.write_text("time_s,stretch,stress_MPa\n0,1.0,0\n1,nan,0.1\n")
+    params_bad = root / "params.json"
+    params_bad.write_text("{not json")
+    return {
+        "missing": root / "no_such_dir" / "p1.csv",
+        "malformed": malformed,
+        "nc": garbage_nc,
+        "toml": bad_toml,
+        "rubber_bad": rubber_bad,
+        "params_bad": params_bad,
+        "out": root / "out",
+        "p1": root / "protocol1.csv",
+    }
+
+
+def _cases(f: dict[str, Path]) -> dict[str, tuple[list[str], str]]:
+    """case id -> (argv, a word the one-line error must contain) for user errors (exit 2)."""
+    out, missing, malformed, nc, toml = (str(f[k]) for k in ("out", "missing", "malformed", "nc", "toml"))
+    rubber_bad, params_bad = str(f["rubber_bad"]), str(f["params_bad"])
+    p1 = str(f["p1"])  # a valid test: only the argument under test is wrong
+    c = {
+        # calibrate
+        "calibrate/wrong-path": (["calibrate", missing, "--law", "bouc_wen", "--out", out], "no_such_dir"),
+        "calibrate/malformed": (["calibrate", malformed, "--law", "bouc_wen", "--out", out], "malformed"),
+        "calibrate/unknown-law": (["calibrate", p1, "--law", "no_such_law", "--out", out], "no_such_law"),
+        "calibrate/bad-noise": (["calibrate", p1, "--law", "bouc_wen", "--noise", "pink", "--out", out],
+                                "pink"),
+        "calibrate/bad-seed": (["calibrate", p1, "--law", "bouc_wen", "--seed", "x", "--out", out], "seed"),
+        # compare
+        "compare/wrong-path": (["compare", missing, "--laws", "all", "--out", out], "no_such_dir"),
+        "compare/malformed": (["compare", malformed, "--laws", "all", "--out", out], "malformed"),
+        "compare/unknown-law": (["compare", p1, "--laws", "bouc_wen,no_such_law", "--out", out],
+                                "no_such_law"),
+        # gap
+        "gap/wrong-path": (["gap", missing, "--law", "bouc_wen", "--out", out], "no_such_dir"),
+        "gap/malformed": (["gap", malformed, "--law", "bouc_wen", "--out", out], "malformed"),
+        "gap/unknown-law": (["gap", p1, "--law", "no_such_law", "--out", out], "no_such_law"),
+        "gap/wrong-holdout": (["gap", p1, "--law", "bouc_wen", "--holdout", missing, "--out", out],
+                              "no_such_dir"),
+        # gap-validate
+        "gap-validate/bad-seeds": (["gap-validate", "--seeds", "0", "--out", out], "seeds"),
+        # propagate
+        "propagate/wrong-path": (["propagate", "--posterior", missing, "--building", "five_story",
+                                  "--records", "elcentro", "--out", out], "no_such_dir"),
+        "propagate/malformed": (["propagate", "--posterior", nc, "--building", "five_story",
+                                 "--records", "elcentro", "--out", out], "posterior.nc"),
+        "propagate/bad-building": (["propagate", "--posterior", nc, "--building", toml,
+                                    "--records", "elcentro", "--out", out], "building.toml"),
+        "propagate/unknown-building": (["propagate", "--posterior", nc, "--building", "no_such_building",
+                                        "--records", "elcentro", "--out", out], "no_such_building"),
+        "propagate/bad-samples": (["propagate", "--posterior", nc, "--building", "five_story",
+                                   "--records", "elcentro", "--samples", "0", "--out", out], "samples"),
+        # demo
+        "demo/bad-seed": (["demo", "--seed", "-1", "--out", out], "seed"),
+        "demo/out-is-a-file": (["demo", "--out", malformed, "--quick", "--no-progress"], "malformed.csv"),
+    }
+    c = {k: ([*RRFREI, *argv], expect) for k, (argv, expect) in c.items()}
+    c.update({
+        "rubber-fit/wrong-path": ([*RUBBER, "fit", missing, "--out", out], "no_such_dir"),
+        "rubber-fit/malformed": ([*RUBBER, "fit", rubber_bad, "--out", out], "rubber_bad.csv"),
+        "rubber-fit/bad-bounds": ([*RUBBER, "fit", rubber_bad, "--bounds", missing, "--out", out],
+                                  "no_such_dir"),
+        "rubber-predict/malformed-params": ([*RUBBER, "predict", "--params", params_bad, rubber_bad],
+                                            "params.json"),
+    })
+    return c
+
+
+def _run(argv: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    return subprocess.run(argv, capture_output=True, text=True, timeout=300, cwd=cwd, env=env)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("cli")
+    files = _files(root)
+    # the bundled protocol-1 test as a plain file, so that only the argument under test is wrong
+    from rrfrei.io import load_test
+
+    files["p1"].write_text(pd.DataFrame({"time_s": (t := load_test("protocol1")).time,
+                                         "disp_mm": 1e3 * t.disp, "force_kN": t.force}).to_csv(index=False))
+    jobs = {f"help/{name}": [*RRFREI, name, "--help"] for name in COMMAND_NAMES}
+    jobs.update({f"help/rubber-{name}": [*RUBBER, name, "--help"] for name in RUBBER_COMMANDS})
+    jobs["help/rrfrei"] = [*RRFREI, "--help"]
+    jobs.update({k: argv for k, (argv, _) in _cases(files).items()})
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        futures = {k: pool.submit(_run, argv, root) for k, argv in jobs.items()}
+        return {k: fut.result() for k, fut in futures.items()}
+
+
+HELP_IDS = ["rrfrei", *COMMAND_NAMES, *(f"rubber-{n}" for n in RUBBER_COMMANDS)]
+
+
+@pytest.mark.parametrize("name", HELP_IDS)
+def test_every_command_help_shows_an_example(runs, name):
+    proc = runs[f"help/{name}"]
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "Example" in proc.stdout or "example" in proc.stdout, proc.stdout[-2000:]
+    cmd = "rrfrei" if name == "rrfrei" else name.replace("rubber-", "")
+    example_lines = [ln for ln in proc.stdout.splitlines()
+                     if cmd in ln and ("rrfrei" in ln or "rubber" in ln)]
+    assert example_lines, f"no example command line in the help of {name}"
+
+
+def _dummy() -> dict[str, Path]:
+    """Paths with the real file names (the ids and expected words do not depend on the folder)."""
+    names = {"missing": "no_such_dir/p1.csv", "malformed": "malformed.csv", "nc": "posterior.nc",
+             "toml": "building.toml", "rubber_bad": "rubber_bad.csv", "params_bad": "params.json",
+             "out": "out", "p1": "protocol1.csv"}
+    return {k: Path("/nonexistent") / v for k, v in names.items()}
+
+
+def _error_ids() -> list[str]:
+    return list(_cases(_dummy()))
+
+
+@pytest.mark.parametrize("case", _error_ids())
+def test_user_error_gives_one_line_on_stderr_and_exit_2(runs, case):
+    proc = runs[case]
+    err = proc.stderr.strip()
+    assert "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert proc.returncode == 2, f"exit {proc.returncode}; stderr: {proc.stderr[-2000:]}"
+    assert err and "\n" not in err, f"expected one line on stderr, got:\n{proc.stderr}"
+    expect = _cases(_dummy())[case][1]
+    assert expect in err, f"the error should name {expect!r}: {err}"

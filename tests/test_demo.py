@@ -1,0 +1,97 @@
+"""`rrfrei demo --quick` in a temporary folder: the page and every table it claims.
+
+The quick run happens once (module fixture, in a subprocess as a user would run it); every test
+below reads its output.  A placeholder step (a workflow not wired in) fails these tests.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+STEPS = ("tests", "calibration", "comparison", "validation", "gap", "propagation", "rubber")
+
+
+@pytest.fixture(scope="module")
+def quick_demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "report"
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    proc = subprocess.run(
+        [sys.executable, "-m", "rrfrei.cli", "demo", "--quick", "--out", str(out), "--no-progress"],
+        capture_output=True, text=True, timeout=900, env=env,
+    )
+    manifest = json.loads((out / "manifest.json").read_text()) if (out / "manifest.json").exists() else None
+    return {"out": out, "proc": proc, "manifest": manifest}
+
+
+def _section(quick_demo, key):
+    return next(s for s in quick_demo["manifest"]["sections"] if s["key"] == key)
+
+
+def _table(quick_demo, key, name) -> pd.DataFrame:
+    return pd.read_csv(quick_demo["out"] / f"tables/{key}__{name}.csv")
+
+
+def test_quick_demo_runs_every_step_for_real_and_exits_zero(quick_demo):
+    proc = quick_demo["proc"]
+    assert quick_demo["manifest"] is not None, proc.stderr[-3000:]
+    status = {s["key"]: s["status"] for s in quick_demo["manifest"]["sections"]}
+    assert tuple(status) == STEPS
+    problems = {s["key"]: (s["error"] or s["reading"])[:500] for s in quick_demo["manifest"]["sections"]
+                if s["status"] != "ok"}
+    assert problems == {}, "steps not ok (error or placeholder)"
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert quick_demo["manifest"]["ok"] is True
+
+
+def test_every_claimed_table_exists_and_holds_only_finite_numbers(quick_demo):
+    n_tables = 0
+    for sec in quick_demo["manifest"]["sections"]:
+        assert sec["tables"], f"section {sec['key']} claims no table"
+        for t in sec["tables"]:
+            path = quick_demo["out"] / t["csv"]
+            assert path.is_file(), f"{t['csv']} claimed but missing"
+            df = pd.read_csv(path)
+            assert len(df) == t["rows"] > 0, t["csv"]
+            num = df.select_dtypes(include=[np.number])
+            assert num.shape[1] > 0, f"{t['csv']} has no numeric column"
+            bad = ~np.isfinite(num.to_numpy(dtype=float))
+            assert not bad.any(), f"{t['csv']}: non-finite in {list(num.columns[bad.any(axis=0)])}"
+            n_tables += 1
+    assert n_tables >= len(STEPS)
+
+
+def test_every_claimed_figure_is_embedded_in_the_page_and_written_as_png(quick_demo):
+    page = (quick_demo["out"] / "index.html").read_text()
+    embedded = re.findall(r'src="data:image/png;base64,', page)
+    claimed = [f for s in quick_demo["manifest"]["sections"] for f in s["figures"]]
+    assert len(embedded) == len(claimed) >= len(STEPS)
+    for f in claimed:
+        png = (quick_demo["out"] / f["png"]).read_bytes()
+        assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 2000, f["png"]
+    assert not re.search(r'(src|href)="(?!data:|#)', page), "the page must not load other files"
+
+
+def test_page_says_it_is_a_quick_run_on_synthetic_tests(quick_demo):
+    page = (quick_demo["out"] / "index.html").read_text()
+    assert "QUICK run" in page
+    assert page.count("SYNTHETIC") >= 3
+
+
+def test_readings_follow_the_numbers_of_their_tables(quick_demo):
+    """Each reading names what its table says is best/worst (so it is computed, not canned)."""
+    for sec in quick_demo["manifest"]["sections"]:
+        assert re.search(r"\d", sec["reading"]), f"{sec['key']}: reading without a number"
+    fit = _table(quick_demo, "calibration", "fit")
+    cal = _section(quick_demo, "calibration")["reading"]
+    assert f"closest fit is {fit.loc[fit['nrmse'].idxmin(), 'law']}" in cal
+    hold = _table(quick_demo, "validation", "holdout")
+    val = _section(quick_demo, "validation")["reading"]
+    assert f"the hardest is {hold.loc[hold['nrmse'].idxmax(), 'test']}" in val
