@@ -1,0 +1,1 @@
+"""Bundled data (SYNTHETIC isolator tests); read with :func:`rrfrei.load_test`."""
