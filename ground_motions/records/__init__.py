@@ -1,0 +1,1 @@
+"""Bundled accelerogram files (package data; see PROVENANCE.md in this folder)."""
