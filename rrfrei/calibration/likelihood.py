@@ -1,0 +1,231 @@
+"""Batched Gaussian log-likelihoods of a shear test under any registered law (Numba, parallel).
+
+Model: measured force ``F_i = f(u_1..u_i; theta) + e_i`` where ``f`` is the law driven along the
+measured displacement history (``rrfrei.laws.kernel.run_history``: one implicit update per
+sample, exactly as an OpenSees displacement-controlled analysis) and the residuals ``e`` are
+
+* ``noise="iid"``: independent N(0, sigma^2);
+* ``noise="ar1"``: stationary AR(1), ``e_i = rho e_{i-1} + w_i``, ``w_i ~ N(0, sigma^2)``,
+  ``e_1 ~ N(0, sigma^2 / (1 - rho^2))``.  The pointwise log-likelihood of sample i is the
+  conditional density ``log p(e_i | e_{i-1})`` (and the marginal for i = 1), so the points sum to
+  the joint log-likelihood (Box & Jenkins, *Time Series Analysis*, ch. 7).
+
+The walkers of the ensemble are evaluated in parallel (``prange``), each along the whole history
+with preallocated work rows: no allocation per time step.  A law that fails (status < 0) or a
+non-positive sigma gives ``-inf``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit, prange
+
+from rrfrei.io import ShearTest
+from rrfrei.laws import LawSpec, Prior
+from rrfrei.laws.kernel import run_history
+
+__all__ = ["Problem", "NOISE_MODELS"]
+
+NOISE_MODELS = ("iid", "ar1")
+_LOG2PI = math.log(2.0 * math.pi)
+
+
+@njit(parallel=True, cache=True)
+def forces_batch(code, P, state0, disp, time, use_time, F, T, status):
+    """Model force of every row of ``P`` along ``disp`` into ``F`` (rows), statuses into ``status``."""
+    nw = P.shape[0]
+    for w in prange(nw):
+        s, _ = run_history(code, P[w], state0, disp, time, use_time, 1, F[w], T[w])
+        status[w] = s
+
+
+@njit(parallel=True, cache=True)
+def loglik_batch(code, P, state0, disp, time, use_time, obs, sigma, rho, ar1, F, T, out):
+    """Joint log-likelihood of every row of ``P`` (with its sigma, rho) into ``out``."""
+    nw = P.shape[0]
+    n = disp.shape[0]
+    for w in prange(nw):
+        s = sigma[w]
+        if not s > 0.0:
+            out[w] = -np.inf
+            continue
+        st, _ = run_history(code, P[w], state0, disp, time, use_time, 1, F[w], T[w])
+        if st != 0:
+            out[w] = -np.inf
+            continue
+        inv = 1.0 / (s * s)
+        acc = 0.0
+        if ar1:
+            r = rho[w]
+            if not abs(r) < 1.0:
+                out[w] = -np.inf
+                continue
+            e0 = obs[0] - F[w, 0]
+            var0 = s * s / (1.0 - r * r)
+            acc = -0.5 * e0 * e0 / var0 - 0.5 * math.log(var0) - 0.5 * _LOG2PI
+            prev = e0
+            for i in range(1, n):
+                e = obs[i] - F[w, i]
+                innov = e - r * prev
+                acc += -0.5 * innov * innov * inv
+                prev = e
+            acc += (n - 1) * (-math.log(s) - 0.5 * _LOG2PI)
+        else:
+            for i in range(n):
+                e = obs[i] - F[w, i]
+                acc += -0.5 * e * e * inv
+            acc += n * (-math.log(s) - 0.5 * _LOG2PI)
+        out[w] = acc if np.isfinite(acc) else -np.inf
+
+
+def pointwise_from_residuals(resid: np.ndarray, sigma: np.ndarray, rho: np.ndarray | None) -> np.ndarray:
+    """(draws, points) log densities of residuals ``resid`` (draws, points)."""
+    s = np.asarray(sigma, dtype=float)[:, None]
+    if rho is None:
+        return -0.5 * (resid / s) ** 2 - np.log(s) - 0.5 * _LOG2PI
+    r = np.asarray(rho, dtype=float)[:, None]
+    out = np.empty_like(resid)
+    var0 = s[:, 0] ** 2 / (1 - r[:, 0] ** 2)
+    out[:, 0] = -0.5 * resid[:, 0] ** 2 / var0 - 0.5 * np.log(var0) - 0.5 * _LOG2PI
+    innov = resid[:, 1:] - r * resid[:, :-1]
+    out[:, 1:] = -0.5 * (innov / s) ** 2 - np.log(s) - 0.5 * _LOG2PI
+    return out
+
+
+@dataclass(eq=False)
+class Problem:
+    """A law, a test, the fixed values and the priors: everything the sampler needs.
+
+    ``theta`` rows are ``[free law parameters (spec order)..., sigma, (rho)]``.
+    """
+
+    spec: LawSpec
+    test: ShearTest
+    free: tuple[str, ...]
+    fixed: dict[str, float]
+    noise: str
+    priors: dict[str, Prior]
+    template: np.ndarray = field(init=False)
+    free_idx: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        if self.noise not in NOISE_MODELS:
+            raise ValueError(f"noise must be one of {NOISE_MODELS}, got {self.noise!r}")
+        names = self.spec.param_names
+        tmpl = np.zeros(len(names))
+        for i, p in enumerate(self.spec.params):
+            if p.name in self.fixed:
+                tmpl[i] = self.fixed[p.name]
+            elif p.name not in self.free:
+                tmpl[i] = p.default  # optional parameter at its default
+        self.template = tmpl
+        self.free_idx = np.array([names.index(n) for n in self.free], dtype=np.int64)
+        self._disp = np.ascontiguousarray(self.test.disp)
+        self._obs = np.ascontiguousarray(self.test.force)
+        self._use_time = bool(self.test.has_time)
+        self._time = np.ascontiguousarray(self.test.time if self._use_time else np.zeros_like(self._disp))
+        self._state0 = np.array(self.spec.initial_state, dtype=float)
+        self._code = np.array(self.spec.code)
+        bounds = [self.spec.bounds((n,))[0] for n in self.free]
+        self._lower = np.array([b[0] for b in bounds] + [0.0] + ([-1.0] if self.noise == "ar1" else []))
+        self._upper = np.array([b[1] for b in bounds] + [np.inf] + ([1.0] if self.noise == "ar1" else []))
+        self.n_evals = 0
+
+    # --- layout ---------------------------------------------------------------------------
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.free + (("sigma", "rho") if self.noise == "ar1" else ("sigma",))
+
+    @property
+    def ndim(self) -> int:
+        return len(self.names)
+
+    @property
+    def n_points(self) -> int:
+        return int(self._disp.size)
+
+    def full_params(self, theta: np.ndarray) -> np.ndarray:
+        """(nw, n_params) law parameter rows (free + fixed + defaults) for ``theta`` rows."""
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        P = np.repeat(self.template[None, :], theta.shape[0], axis=0)
+        P[:, self.free_idx] = theta[:, : len(self.free)]
+        return np.ascontiguousarray(P)
+
+    def noise_params(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        theta = np.atleast_2d(theta)
+        k = len(self.free)
+        sigma = np.ascontiguousarray(theta[:, k])
+        rho = np.ascontiguousarray(theta[:, k + 1]) if self.noise == "ar1" else None
+        return sigma, rho
+
+    # --- densities ------------------------------------------------------------------------
+    def log_prior(self, theta: np.ndarray) -> np.ndarray:
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        lp = np.zeros(theta.shape[0])
+        inside = np.all((theta >= self._lower) & (theta <= self._upper), axis=1)
+        lp[~inside] = -np.inf
+        for j, name in enumerate(self.names):
+            lp += self.priors[name].logpdf(theta[:, j])
+        if self.spec.check is not None:
+            P = self.full_params(theta)
+            for w in np.flatnonzero(np.isfinite(lp)):
+                try:
+                    self.spec.check(P[w])
+                except ValueError:
+                    lp[w] = -np.inf
+        return lp
+
+    def log_likelihood(self, theta: np.ndarray) -> np.ndarray:
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        nw = theta.shape[0]
+        P = self.full_params(theta)
+        sigma, rho = self.noise_params(theta)
+        F = np.empty((nw, self.n_points))
+        T = np.empty_like(F)
+        out = np.empty(nw)
+        loglik_batch(self._code, P, self._state0, self._disp, self._time, self._use_time, self._obs,
+                     sigma, rho if rho is not None else np.zeros(nw), rho is not None, F, T, out)
+        self.n_evals += nw
+        return out
+
+    def log_prob(self, theta: np.ndarray) -> np.ndarray:
+        """Vectorised log posterior (emcee ``vectorize=True``); -inf outside the support."""
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        lp = self.log_prior(theta)
+        ok = np.isfinite(lp)
+        if ok.any():
+            lp[ok] += self.log_likelihood(theta[ok])
+        lp[~np.isfinite(lp)] = -np.inf
+        return lp
+
+    # --- forces and pointwise -------------------------------------------------------------
+    def forces(self, P: np.ndarray, test: ShearTest | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(forces (nw, n), status (nw,)) of law parameter rows ``P`` along ``test`` (default: own)."""
+        P = np.ascontiguousarray(np.atleast_2d(P), dtype=float)
+        if test is None:
+            disp, time, use_time = self._disp, self._time, self._use_time
+        else:
+            disp = np.ascontiguousarray(test.disp)
+            use_time = bool(test.has_time)
+            time = np.ascontiguousarray(test.time if use_time else np.zeros_like(disp))
+        F = np.empty((P.shape[0], disp.size))
+        T = np.empty_like(F)
+        status = np.zeros(P.shape[0], dtype=np.int64)
+        forces_batch(self._code, P, self._state0, disp, time, use_time, F, T, status)
+        F[status != 0] = np.nan
+        return F, status
+
+    def profile_noise(self, F: np.ndarray) -> np.ndarray:
+        """Maximum-likelihood noise parameters per row of forces ``F``: (nw, 1 or 2)."""
+        r = self._obs[None, :] - F
+        if self.noise == "iid":
+            return np.sqrt(np.mean(r * r, axis=1))[:, None]
+        num = np.sum(r[:, 1:] * r[:, :-1], axis=1)
+        den = np.sum(r[:, :-1] ** 2, axis=1)
+        rho = np.clip(num / np.where(den > 0, den, 1.0), -0.98, 0.98)
+        innov = r[:, 1:] - rho[:, None] * r[:, :-1]
+        sigma = np.sqrt(np.mean(innov**2, axis=1))
+        return np.column_stack([sigma, rho])

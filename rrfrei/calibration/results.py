@@ -1,0 +1,383 @@
+"""The :class:`Calibration` result: InferenceData, MAP, summary table, draws, netCDF round trip.
+
+The ``posterior`` group holds the sampled quantities (free law parameters, ``sigma`` [kN] and,
+for AR(1) noise, ``rho``) with the walkers as chains.  Its attributes hold everything needed to
+rebuild the result from the netCDF file alone: the law name, the fixed (geometry and default)
+values, the noise model, the MAP, the calibrated displacement range and the diagnostics.  The
+test itself is in ``observed_data`` (force) and ``constant_data`` (displacement, time).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from rrfrei.io import ShearTest
+from rrfrei.laws import LawSpec, get
+
+__all__ = ["Calibration", "posterior_draws", "loglik_pointwise", "build_idata"]
+
+MAX_DRAWS = 1000
+"""Posterior draws kept (walkers x draws) after burn-in and thinning."""
+PREDICTIVE_DRAWS = 200
+"""Draws (spread over the walkers) whose force histories are stored as posterior_predictive."""
+
+
+def _az():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        import arviz as az
+    return az
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """Posterior of a law's parameters given a shear test.
+
+    Attributes
+    ----------
+    law : law name (possibly augmented, ``"bouc_wen+rate"``).
+    spec : its :class:`~rrfrei.laws.LawSpec`.
+    test : the :class:`~rrfrei.io.ShearTest` calibrated on.
+    idata : arviz InferenceData (posterior, log_likelihood (pointwise, per sample), posterior
+        predictive for a thinned set of draws, observed_data, constant_data, sample_stats).
+    map : highest posterior density point found: free law parameters, ``sigma`` [kN] (, ``rho``).
+    sigma : MAP noise standard deviation [kN] (innovation sd for AR(1)).
+    summary : DataFrame indexed by sampled quantity: unit, mean, MAP, sd, 2.5%, 97.5%, ESS, R-hat.
+    converged : chain >= 50 autocorrelation times, tau stable and R-hat < 1.05 for all.
+    fixed : values held fixed (geometry, optional parameters at their defaults, user ``fixed=``).
+    noise : "iid" or "ar1".
+    diagnostics : acceptance, tau, ESS, R-hat, steps, walkers, burn, thin, evaluations, seconds, note.
+    """
+
+    law: str
+    spec: LawSpec
+    test: ShearTest
+    idata: Any
+    map: dict[str, float]
+    sigma: float
+    summary: pd.DataFrame
+    converged: bool
+    fixed: dict[str, float] = field(default_factory=dict)
+    noise: str = "iid"
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    # --- parameters -----------------------------------------------------------------------
+    @property
+    def free(self) -> tuple[str, ...]:
+        return tuple(json.loads(self.idata.posterior.attrs["free"]))
+
+    @property
+    def sampled(self) -> tuple[str, ...]:
+        """Free law parameters then the noise parameters (the posterior's variables)."""
+        return self.free + (("sigma", "rho") if self.noise == "ar1" else ("sigma",))
+
+    def theta(self) -> np.ndarray:
+        """(draws, sampled) matrix of all stored posterior draws (chains stacked)."""
+        post = self.idata.posterior
+        return np.column_stack([post[n].values.reshape(-1) for n in self.sampled])
+
+    def map_params(self) -> dict[str, float]:
+        """Full law parameter set (free at MAP + fixed) by name, ready for ``spec.pack``."""
+        return _full_dict(self.spec, self.fixed, {k: self.map[k] for k in self.free})
+
+    def draws(self, n: int | None = None, seed: int = 0, *, noise: bool = False) -> pd.DataFrame:
+        """``n`` posterior draws (all when None) of FULL law parameter sets.
+
+        Columns are the law's parameter names (free + fixed/geometry + defaults), in kernel order,
+        then ``sigma`` (, ``rho``) when ``noise`` is True.  ``df.attrs`` holds ``law`` and ``noise``.
+        """
+        th = self.theta()
+        idx = _choose(th.shape[0], n, seed)
+        th = th[idx]
+        cols = {}
+        k = len(self.free)
+        for p in self.spec.params:
+            if p.name in self.free:
+                cols[p.name] = th[:, self.free.index(p.name)]
+            else:
+                cols[p.name] = np.full(th.shape[0], self.fixed[p.name], dtype=float)
+        if noise:
+            for j, name in enumerate(self.sampled[k:]):
+                cols[name] = th[:, k + j]
+        df = pd.DataFrame(cols)
+        df.attrs["law"] = self.law
+        df.attrs["noise"] = self.noise
+        return df
+
+    # --- output -------------------------------------------------------------------------
+    def to_netcdf(self, path: str | Path) -> Path:
+        """Write the InferenceData (with everything needed by :meth:`from_netcdf`)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.idata.to_netcdf(str(path))
+        return path
+
+    @classmethod
+    def from_netcdf(cls, path: str | Path) -> Calibration:
+        """Rebuild a calibration from a file written by :meth:`to_netcdf`."""
+        az = _az()
+        path = Path(path)
+        if not path.exists():
+            raise FileNotFoundError(2, "No such file", str(path))
+        idata = az.from_netcdf(str(path))
+        return cls.from_idata(idata)
+
+    @classmethod
+    def from_idata(cls, idata) -> Calibration:
+        if "posterior" not in idata.groups() or "law" not in idata.posterior.attrs:
+            raise ValueError("this InferenceData was not written by rrfrei.calibrate (no law in attrs)")
+        a = idata.posterior.attrs
+        spec = get(str(a["law"]))
+        cd = idata.constant_data
+        test = ShearTest(
+            name=str(a["test_name"]),
+            time=np.asarray(cd["time"].values, dtype=float),
+            disp=np.asarray(cd["disp"].values, dtype=float),
+            force=np.asarray(idata.observed_data["force"].values, dtype=float),
+            has_time=bool(int(a["test_has_time"])),
+            vertical_load=None if float(a["test_vertical_load"]) != float(a["test_vertical_load"])
+            else float(a["test_vertical_load"]),
+            geometry=json.loads(a["test_geometry"]),
+            source=str(a["test_source"]),
+        )
+        mp = json.loads(a["map"])
+        diag = json.loads(a["diagnostics"])
+        return cls(
+            law=spec.name, spec=spec, test=test, idata=idata, map=mp, sigma=float(mp["sigma"]),
+            summary=_summary(idata, spec, mp, tuple(json.loads(a["free"])), str(a["noise"])),
+            converged=bool(int(a["converged"])), fixed=json.loads(a["fixed"]), noise=str(a["noise"]),
+            diagnostics=diag,
+        )
+
+    def opensees_command(self, tag: int = 1, i_node: int = 1, j_node: int = 2) -> str:
+        """The openseespy call creating this law at its MAP (2-D zero-length bearing element).
+
+        Arguments follow the element's documented order, which is the law's parameter order
+        (``rrfrei.laws``: parameters are declared in OpenSees order).  Axial and moment
+        behaviour are materials the user supplies (tags 1 and 2 here); the element is oriented
+        along global y (vertical) so the shear direction is global x.
+        """
+        if not self.spec.opensees_element:
+            raise ValueError(f"law {self.law!r} has no OpenSees element")
+        vals = self.map_params()
+        args = ", ".join(f"{vals[n]:.6g}" for n in self.spec.param_names if not self.spec.param(n).optional
+                         or vals[n] != self.spec.param(n).default)
+        return (
+            f"ops.element('{self.spec.opensees_element}', {tag}, {i_node}, {j_node}, {args}, "
+            f"'-P', 1, '-Mz', 2, '-orient', 0.0, 1.0, 0.0, -1.0, 0.0, 0.0)  "
+            f"# {self.law} MAP, units kN, m, s"
+        )
+
+    def predict(self, test: ShearTest | None = None, **kwargs):
+        """Posterior predictive check on ``test`` (default: the calibration test); see checks.predict."""
+        from rrfrei.calibration.checks import predict
+
+        return predict(self, self.test if test is None else test, **kwargs)
+
+    def __repr__(self) -> str:
+        mp = ", ".join(f"{k}={v:.4g}" for k, v in self.map.items())
+        return (f"Calibration(law={self.law!r}, test={self.test.name!r}, noise={self.noise!r}, "
+                f"converged={self.converged}, map={{{mp}}})")
+
+
+# ---------------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------------
+def _choose(total: int, n: int | None, seed: int) -> np.ndarray:
+    if n is None:
+        return np.arange(total)
+    if not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n must be a positive integer, got {n!r}")
+    rng = np.random.default_rng(seed)
+    return rng.choice(total, size=int(n), replace=n > total)
+
+
+def _full_dict(spec: LawSpec, fixed: Mapping[str, float], free: Mapping[str, float]) -> dict[str, float]:
+    out = {}
+    for p in spec.params:
+        out[p.name] = float(free[p.name]) if p.name in free else float(fixed[p.name])
+    return out
+
+
+def _summary(idata, spec: LawSpec, mp: Mapping[str, float], free: tuple[str, ...],
+             noise: str) -> pd.DataFrame:
+    az = _az()
+    names = list(free) + (["sigma", "rho"] if noise == "ar1" else ["sigma"])
+    post = idata.posterior
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ess = az.ess(idata, var_names=names, method="bulk")
+        rhat = az.rhat(idata, var_names=names)
+    rows = []
+    for n in names:
+        x = post[n].values.reshape(-1)
+        unit = spec.param(n).unit if n in free else ("kN" if n == "sigma" else "-")
+        rows.append({
+            "parameter": n, "unit": unit, "mean": float(np.mean(x)), "MAP": float(mp[n]),
+            "sd": float(np.std(x, ddof=1)) if x.size > 1 else float("nan"),
+            "2.5%": float(np.quantile(x, 0.025)), "97.5%": float(np.quantile(x, 0.975)),
+            "ESS": float(ess[n].values), "R-hat": float(rhat[n].values),
+        })
+    return pd.DataFrame(rows).set_index("parameter")
+
+
+def build_idata(problem, chain, logp, *, burn: int, thin: int, theta_map, fixed, diagnostics, seed: int):
+    """InferenceData from the kept chain (steps, walkers, ndim) (see the module docstring)."""
+    import xarray as xr
+
+    az = _az()
+    kept = chain[burn::thin]  # (draws, walkers, ndim)
+    lp = logp[burn::thin]
+    nd, nw, ndim = kept.shape
+    names = problem.names
+    posterior = {n: kept[:, :, j].T for j, n in enumerate(names)}  # (chain, draw)
+    flat = kept.transpose(1, 0, 2).reshape(-1, ndim)  # chain-major, matches (chain, draw) order
+    P = problem.full_params(flat)
+    F, status = problem.forces(P)
+    sigma, rho = problem.noise_params(flat)
+    from rrfrei.calibration.likelihood import pointwise_from_residuals
+
+    resid = problem._obs[None, :] - F
+    ll = pointwise_from_residuals(resid, sigma, rho)
+    ll[status != 0] = -np.inf
+    test = problem.test
+    idata = az.from_dict(
+        posterior=posterior,
+        log_likelihood={"force": ll.reshape(nw, nd, -1)},
+        observed_data={"force": np.asarray(test.force)},
+        constant_data={"disp": np.asarray(test.disp), "time": np.asarray(test.time)},
+        sample_stats={"lp": lp.T},
+        dims={"force": ["sample"], "disp": ["sample"], "time": ["sample"]},
+        coords={"sample": np.arange(problem.n_points)},
+    )
+    # posterior predictive on a thinned subset of draws (same chain/draw labels as the posterior)
+    per_chain = max(1, PREDICTIVE_DRAWS // nw)
+    didx = np.unique(np.linspace(0, nd - 1, min(per_chain, nd)).round().astype(int))
+    Fm = F.reshape(nw, nd, -1)[:, didx, :]
+    rng = np.random.default_rng(seed + 7)
+    sig = sigma.reshape(nw, nd)[:, didx]
+    rh = None if rho is None else rho.reshape(nw, nd)[:, didx]
+    noise = simulate_noise(rng, sig, rh, Fm.shape[-1])
+    pp = xr.Dataset(
+        {"force": (("chain", "draw", "sample"), Fm + noise),
+         "force_model": (("chain", "draw", "sample"), Fm)},
+        coords={"chain": np.arange(nw), "draw": didx, "sample": np.arange(problem.n_points)},
+    )
+    idata.add_groups({"posterior_predictive": pp})
+    a = idata.posterior.attrs
+    a["law"] = problem.spec.name
+    a["free"] = json.dumps(list(problem.free))
+    a["fixed"] = json.dumps({k: float(v) for k, v in fixed.items()})
+    a["noise"] = problem.noise
+    a["priors"] = json.dumps({k: [p.kind, p.a, p.b] for k, p in problem.priors.items()})
+    a["disp_min_m"] = float(test.disp.min())
+    a["disp_max_m"] = float(test.disp.max())
+    a["test_name"] = test.name
+    a["test_source"] = test.source
+    a["test_has_time"] = int(test.has_time)
+    a["test_vertical_load"] = float("nan") if test.vertical_load is None else float(test.vertical_load)
+    a["test_geometry"] = json.dumps(test.geometry)
+    a["map"] = json.dumps({n: float(x) for n, x in zip(names, theta_map)})
+    a["diagnostics"] = json.dumps(diagnostics)
+    a["converged"] = int(bool(diagnostics.get("converged", False)))
+    a["burn"] = int(burn)
+    a["thin"] = int(thin)
+    return idata
+
+
+def simulate_noise(rng: np.random.Generator, sigma: np.ndarray, rho: np.ndarray | None, n: int) -> np.ndarray:
+    """Residual histories (..., n) from the noise model with per-draw sigma (, rho)."""
+    sigma = np.asarray(sigma, dtype=float)
+    w = rng.standard_normal(sigma.shape + (n,)) * sigma[..., None]
+    if rho is None:
+        return w
+    r = np.asarray(rho, dtype=float)
+    e = np.empty_like(w)
+    e[..., 0] = w[..., 0] / np.sqrt(1.0 - r**2)
+    for i in range(1, n):
+        e[..., i] = r * e[..., i - 1] + w[..., i]
+    return e
+
+
+# ---------------------------------------------------------------------------------------------
+# public helpers for other workflows (gap diagnosis, propagation)
+# ---------------------------------------------------------------------------------------------
+def posterior_draws(source, n: int | None = None, seed: int = 0) -> tuple[str, pd.DataFrame]:
+    """``(law_name, DataFrame of n FULL parameter sets)`` from any posterior source.
+
+    ``source`` is a :class:`Calibration`, an arviz InferenceData written by :func:`calibrate`, a
+    netCDF path, or a DataFrame of draws whose law is in ``df.attrs["law"]`` (then its rows are
+    resampled with replacement when ``n`` exceeds them).  Columns: the law's parameters in kernel
+    order, plus ``sigma`` (, ``rho``) when known.
+    """
+    if isinstance(source, pd.DataFrame):
+        law = source.attrs.get("law")
+        if not law:
+            raise ValueError('a DataFrame of draws must name its law in df.attrs["law"]')
+        spec = get(law)
+        missing = [p.name for p in spec.params if p.name not in source.columns and not p.optional]
+        if missing:
+            raise ValueError(f"draws for law {law!r} lack column(s) {', '.join(missing)}")
+        idx = _choose(len(source), n, seed)
+        df = source.iloc[idx].reset_index(drop=True)
+        df.attrs = dict(source.attrs)
+        return spec.name, df
+    cal = _as_calibration(source)
+    return cal.law, cal.draws(n, seed, noise=True)
+
+
+def _as_calibration(source) -> Calibration:
+    if isinstance(source, Calibration):
+        return source
+    if isinstance(source, (str, Path)):
+        return Calibration.from_netcdf(source)
+    if hasattr(source, "groups") and hasattr(source, "posterior"):
+        return Calibration.from_idata(source)
+    raise ValueError(
+        f"expected a Calibration, InferenceData, netCDF path or DataFrame of draws; got "
+        f"{type(source).__name__}"
+    )
+
+
+def loglik_pointwise(source, test: ShearTest, *, n: int | None = None, seed: int = 0) -> np.ndarray:
+    """(draws, points) pointwise log-likelihood of ``test`` under posterior draws.
+
+    ``source`` is a Calibration / InferenceData / netCDF path (all stored draws, or ``n`` of them),
+    or a ``(law, DataFrame)`` pair / DataFrame with ``attrs["law"]`` whose columns include
+    ``sigma`` (and ``rho`` for AR(1) noise: the noise model is AR(1) exactly when ``rho`` is a
+    column).  Failing parameter sets give ``-inf`` rows.
+    """
+    from rrfrei.calibration.likelihood import Problem, pointwise_from_residuals
+
+    if isinstance(source, tuple) and len(source) == 2:
+        law, df = source
+        df = df.copy()
+        df.attrs["law"] = law if isinstance(law, str) else get(law).name
+        source = df
+    if isinstance(source, pd.DataFrame):
+        law, df = posterior_draws(source, n, seed)
+        if "sigma" not in df.columns:
+            raise ValueError("draws need a 'sigma' column [kN] to evaluate a likelihood")
+    else:
+        law, df = posterior_draws(source, n, seed)
+    spec = get(law)
+    noise = "ar1" if "rho" in df.columns else "iid"
+    P = np.ascontiguousarray(
+        np.column_stack([df[p.name].to_numpy(float) if p.name in df.columns else np.full(len(df), p.default)
+                         for p in spec.params])
+    )
+    prob = Problem(spec, test, free=(), fixed=spec.as_dict(P[0]), noise=noise, priors={})
+    F, status = prob.forces(P)
+    resid = np.asarray(test.force)[None, :] - F
+    ll = pointwise_from_residuals(resid, df["sigma"].to_numpy(float),
+                                  df["rho"].to_numpy(float) if noise == "ar1" else None)
+    ll[status != 0] = -np.inf
+    return ll
