@@ -312,26 +312,44 @@ def _resolve_scales(scales) -> tuple[float, ...]:
     return vals
 
 
+def _range_from_attrs(attrs: Mapping) -> tuple[float, float] | None:
+    if "disp_min_m" in attrs and "disp_max_m" in attrs:
+        return float(attrs["disp_min_m"]), float(attrs["disp_max_m"])
+    if "disp_range" in attrs:
+        lo, hi = attrs["disp_range"]
+        return float(lo), float(hi)
+    return None
+
+
 def _resolve_posterior(posterior, n: int, seed: int) -> tuple[str, pd.DataFrame, tuple[float, float] | None]:
-    """(law name, n full parameter sets, calibrated specimen displacement range [m] or None)."""
-    try:
-        from rrfrei.calibration import posterior_draws
-    except ImportError:
-        posterior_draws = None
-    if posterior_draws is not None:
-        law, df = posterior_draws(posterior, n, seed)
-    elif isinstance(posterior, pd.DataFrame):
-        law = posterior.attrs.get("law")
-        if not law:
-            raise ValueError('a DataFrame of draws must name its law in df.attrs["law"]')
-        rng = np.random.default_rng(seed)
-        idx = rng.choice(len(posterior), size=n, replace=len(posterior) < n)
-        df = posterior.iloc[idx].reset_index(drop=True)
-        df.attrs = dict(posterior.attrs)
+    """(law name, n full parameter sets, calibrated specimen displacement range [m] or None).
+
+    The range comes from the calibration (``idata.posterior.attrs["disp_min_m"/"disp_max_m"]``),
+    or from ``df.attrs`` (same keys, or ``"disp_range"``) for a DataFrame of draws.
+    """
+    from rrfrei.calibration import Calibration, posterior_draws
+
+    if isinstance(posterior, (str, os.PathLike)):
+        path = Path(posterior)
+        if not path.exists():
+            raise FileNotFoundError(2, "No such file or directory", str(path))
+        try:
+            posterior = Calibration.from_netcdf(path)
+        except (OSError, ValueError, KeyError) as exc:
+            raise ValueError(f"cannot read a posterior from {str(path)!r}: {exc}") from None
+    elif hasattr(posterior, "groups") and hasattr(posterior, "posterior"):
+        posterior = Calibration.from_idata(posterior)
+    if isinstance(posterior, pd.DataFrame):
+        cal_range = _range_from_attrs(posterior.attrs)
+    elif isinstance(posterior, Calibration):
+        cal_range = _range_from_attrs(posterior.idata.posterior.attrs)
     else:
-        raise ValueError(f"cannot read a posterior from {type(posterior).__name__} here; give a DataFrame")
-    rng_ = df.attrs.get("disp_range")
-    return str(law), df.reset_index(drop=True), (None if rng_ is None else (float(rng_[0]), float(rng_[1])))
+        raise ValueError(
+            "posterior must be a Calibration, an InferenceData, a netCDF path or a DataFrame of draws, "
+            f"got {type(posterior).__name__}"
+        )
+    law, df = posterior_draws(posterior, n, seed)
+    return str(law), df.reset_index(drop=True), cal_range
 
 
 def _pack_draws(spec, df: pd.DataFrame) -> np.ndarray:
