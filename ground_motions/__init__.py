@@ -5,16 +5,30 @@ recurrence is a Numba kernel over arrays (``spectra._nigam_jennings``).
 
 - :class:`Record` (``dt`` [s], ``accel`` [m/s^2], read-only), :func:`read` (AT2, V2, V1/RAW,
   text, CSV), :func:`load` / :func:`available` (bundled records), :func:`baseline_correct`.
+- :func:`response_spectrum` -> :class:`Spectrum` (Nigam-Jennings, Numba), :func:`sdof_response`,
+  :func:`design_spectrum` (ASCE 7-22 two-period shape).
+- :func:`scale_to_pga`, :func:`scale_to_spectrum`; :func:`plot_record`, :func:`plot_spectra`.
 """
 
 from .catalogue import available, load
 from .io import read
+from .plotting import plot_record, plot_spectra
 from .processing import baseline_correct, integrate
 from .record import G, Record
+from .scaling import scale_to_pga, scale_to_spectrum
+from .spectra import Spectrum, design_spectrum, response_spectrum, sdof_response
 
 __all__ = [
     "G",
     "Record",
+    "Spectrum",
+    "design_spectrum",
+    "plot_record",
+    "plot_spectra",
+    "response_spectrum",
+    "scale_to_pga",
+    "scale_to_spectrum",
+    "sdof_response",
     "available",
     "baseline_correct",
     "integrate",
