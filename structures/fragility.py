@@ -25,7 +25,8 @@ class Fragility:
     """A fitted lognormal fragility curve.
 
     ``theta`` is the median intensity (units of the IM), ``beta`` the log standard deviation;
-    ``im``/``n``/``z`` the stripes it was fitted on; ``note`` says why a fit is not finite (all
+    ``im``/``n``/``z`` the stripes it was fitted on; ``loglik`` the maximised binomial
+    log-likelihood (with its ln C(n, z) terms); ``note`` says why a fit is not finite (all
     or no analyses exceeding, or one stripe only).
     """
 
@@ -96,14 +97,17 @@ def fit_fragility(im, n, z, *, demand: str = "", limit: float = float("nan")) ->
     def neg(v):
         return -_loglik(v[0], v[1], lx, n_, z_)
 
-    best = None
-    # a coarse grid start avoids the flat regions of the likelihood far from the data
-    for lt in np.linspace(lx.min() - 0.5, lx.max() + 0.5, 7):
-        for lb in np.log([0.1, 0.3, 0.8]):
-            res = optimize.minimize(neg, x0=[lt, lb], method="L-BFGS-B", bounds=bounds)
-            if best is None or res.fun < best.fun:
-                best = res
+    # a vectorised grid locates the basin (the likelihood is flat far from the data), then
+    # L-BFGS-B polishes the best grid point
+    gt = np.linspace(lx.min() - 1.0, lx.max() + 1.0, 61)
+    gb = np.linspace(math.log(0.01), math.log(3.0), 40)
+    tt = (lx[None, None, :] - gt[:, None, None]) / np.exp(gb)[None, :, None]
+    ll = np.sum(z_ * special.log_ndtr(tt) + (n_ - z_) * special.log_ndtr(-tt), axis=-1)
+    i, j = np.unravel_index(int(np.argmax(ll)), ll.shape)
+    best = optimize.minimize(neg, x0=[gt[i], gb[j]], method="L-BFGS-B", bounds=bounds)
     theta, beta = math.exp(best.x[0]), math.exp(best.x[1])
+    # the full binomial log-likelihood, with the ln C(n, z) terms the optimisation drops
+    log_comb = float(np.sum(special.gammaln(n_ + 1) - special.gammaln(z_ + 1) - special.gammaln(n_ - z_ + 1)))
     if best.x[1] <= bounds[1][0] + 1e-6:
         note = "stripes perfectly separated: beta hits its lower bound 0.001"
-    return Fragility(theta=theta, beta=beta, loglik=-float(best.fun), note=note, **base)
+    return Fragility(theta=theta, beta=beta, loglik=log_comb - float(best.fun), note=note, **base)
