@@ -41,7 +41,7 @@ from structures import summaries
 from structures.fragility import Fragility, fit_fragility
 from structures.store import ParquetStore
 
-__all__ = ["DEMAND_LABELS", "ResponseSet", "propagate"]
+__all__ = ["DEMAND_LABELS", "ResponseSet", "SpectrumScaling", "propagate"]
 
 #: Demand column -> axis label with unit (per-story/floor columns are labelled by prefix).
 DEMAND_LABELS = {
@@ -68,6 +68,23 @@ def label(demand: str) -> str:
         floor = demand[len("floor_acc_f"):].removesuffix("_ms2")
         return f"peak absolute acceleration, floor {floor} [m/s$^2$]"
     return demand
+
+
+@dataclass(frozen=True)
+class SpectrumScaling:
+    """Scale every record to a target spectrum first, then apply the ``stripes`` multipliers.
+
+    ``target`` is what :func:`ground_motions.scale_to_spectrum` accepts (a ``Spectrum``, a
+    callable ``T -> PSA [m/s^2]`` or a ``(periods, psa)`` pair), matched over ``period_range``
+    [s] (``method`` ``"log-ls"`` or ``"asce7"``).  The intensity of a stripe is then the
+    multiple of the target spectrum.
+    """
+
+    target: Any
+    period_range: tuple[float, float]
+    stripes: tuple[float, ...] = (1.0,)
+    damping: float = 0.05
+    method: str = "log-ls"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -109,6 +126,7 @@ class ResponseSet:
     length_scale: float
     building: str = ""
     im_label: str = "intensity (record scale factor) [-]"
+    record_factors: dict[str, float] = field(default_factory=dict)
     notes: tuple[str, ...] = field(default=())
 
     # -------------------------------------------------------------------- table helpers
@@ -513,7 +531,8 @@ def propagate(
     n_samples
         Number of parameter draws (drawn up front from ``seed``).
     scales
-        Intensity multipliers applied to every record (stripes).
+        Intensity multipliers applied to every record (stripes), or a :class:`SpectrumScaling`
+        (records first scaled to a target spectrum, factors in ``ResponseSet.record_factors``).
     seed
         Seed of the posterior draws; the analyses themselves are deterministic.
     executor
@@ -549,9 +568,20 @@ def propagate(
             f"executor must have a .submit method (concurrent.futures or Dask), got {executor!r}"
         )
     n_samples, chunk_size, seed = int(n_samples), int(chunk_size), int(seed)
-    scale_values = _resolve_scales(scales)
+    spectrum = scales if isinstance(scales, SpectrumScaling) else None
+    scale_values = _resolve_scales(spectrum.stripes if spectrum else scales)
     bld = _resolve_building(building)
     recs = _resolve_records(records)
+    record_factors = {r.name: 1.0 for r in recs}
+    im_label = "intensity (record scale factor) [-]"
+    if spectrum is not None:
+        from ground_motions import scale_to_spectrum
+
+        pairs = scale_to_spectrum(recs, spectrum.target, spectrum.period_range, spectrum.damping,
+                                  method=spectrum.method)
+        recs = [r for r, _ in pairs]
+        record_factors = {r.name: float(f) for r, f in pairs}
+        im_label = "intensity (multiple of the target spectrum) [-]"
     law_name, draws, cal_range = _resolve_posterior(posterior, n_samples, seed)
     iso = bld.isolator
     bld_law = get_law(iso.law).name
@@ -581,6 +611,7 @@ def propagate(
         "building": building_name,
         "records": [r.name for r in recs],
         "scales": list(scale_values),
+        "record_factors": [repr(record_factors[r.name]) for r in recs],
         "n_samples": n_samples,
         "seed": seed,
         "chunk_size": chunk_size,
@@ -665,5 +696,7 @@ def propagate(
         calibrated_range=cal_range,
         length_scale=length_scale,
         building=building_name,
+        im_label=im_label,
+        record_factors=record_factors,
         notes=tuple(notes),
     )
