@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rrfrei.calibration.checks import predict
+from rrfrei.calibration.compare import compare, elpd_loco  # the function shadows the module name
 from rrfrei.calibration.likelihood import NOISE_MODELS, Problem
 from rrfrei.calibration.priors import resolve_priors
 from rrfrei.calibration.results import Calibration, build_idata, loglik_pointwise, posterior_draws
@@ -216,19 +218,3 @@ def calibrate(
             ConvergenceWarning, stacklevel=2,
         )
     return cal
-
-
-def __getattr__(name: str):
-    if name == "compare":
-        from rrfrei.calibration.compare import compare
-
-        return compare
-    if name == "elpd_loco":
-        from rrfrei.calibration.compare import elpd_loco
-
-        return elpd_loco
-    if name == "predict":
-        from rrfrei.calibration.checks import predict
-
-        return predict
-    raise AttributeError(f"module 'rrfrei.calibration' has no attribute {name!r}")

@@ -110,6 +110,8 @@ class Calibration:
         df = pd.DataFrame(cols)
         df.attrs["law"] = self.law
         df.attrs["noise"] = self.noise
+        df.attrs["disp_min_m"] = float(self.test.disp.min())
+        df.attrs["disp_max_m"] = float(self.test.disp.max())
         return df
 
     # --- output -------------------------------------------------------------------------
