@@ -6,6 +6,7 @@ status in ``records/PROVENANCE.md``).  Loaded records are cached: a ``Record`` i
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -131,7 +132,9 @@ def load(name: str, *, channel: int | None = None, corrected: bool = True) -> Re
         Acceleration in m/s^2; ``name`` is the short name (``name.chN`` for a non-default
         channel).
     """
-    return _load(str(name).strip().lower(), None if channel is None else int(channel), bool(corrected))
+    rec = _load(str(name).strip().lower(), None if channel is None else int(channel), bool(corrected))
+    # the parsed record is cached; each caller gets its own metadata dict (and array copy)
+    return Record(rec.name, rec.dt, rec.accel, copy.deepcopy(rec.meta))
 
 
 @lru_cache(maxsize=64)

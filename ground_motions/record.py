@@ -62,6 +62,10 @@ class Record:
         object.__setattr__(self, "accel", a)
         object.__setattr__(self, "meta", dict(self.meta))
 
+    def __reduce__(self):
+        # through the constructor, so an unpickled record (e.g. in a Dask worker) is read-only too
+        return (Record, (self.name, self.dt, self.accel, self.meta))
+
     # ------------------------------------------------------------------ derived quantities
     @property
     def npts(self) -> int:

@@ -123,6 +123,9 @@ class Spectrum:
             a.setflags(write=False)
             object.__setattr__(self, f, a)
 
+    def __reduce__(self):
+        return (Spectrum, (self.periods, self.sd, self.sv, self.psa, self.damping, self.name))
+
     def at(self, period: float | np.ndarray) -> np.ndarray:
         """PSA [m/s^2] at ``period`` [s] by linear interpolation (clamped at the ends)."""
         return np.interp(period, self.periods, self.psa)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import fnmatch
+import pickle
 import tomllib
 from pathlib import Path
 
@@ -208,6 +209,15 @@ def test_record_is_frozen_and_its_samples_read_only():
         gm.Record("x", float("nan"), [0.0, 1.0])
     with pytest.raises(ValueError, match=r"accel\[1\] = nan is not finite"):
         gm.Record("x", 0.01, [0.0, np.nan])
+
+
+def test_records_pickle_read_only_and_loaded_metadata_is_not_shared():
+    rec = gm.load("rinaldi")
+    back = pickle.loads(pickle.dumps(rec))
+    np.testing.assert_array_equal(back.accel, rec.accel)
+    assert not back.accel.flags.writeable and back.meta == rec.meta and back.dt == rec.dt
+    rec.meta["note"] = "changed by a caller"
+    assert "note" not in gm.load("rinaldi").meta
 
 
 def test_record_helpers_time_duration_scaled_and_leading_zero():
