@@ -251,15 +251,10 @@ def build_idata(problem, chain, logp, *, burn: int, thin: int, theta_map, fixed,
     ll = pointwise_from_residuals(resid, sigma, rho)
     ll[status != 0] = -np.inf
     test = problem.test
-    idata = az.from_dict(
-        posterior=posterior,
-        log_likelihood={"force": ll.reshape(nw, nd, -1)},
-        observed_data={"force": np.asarray(test.force)},
-        constant_data={"disp": np.asarray(test.disp), "time": np.asarray(test.time)},
-        sample_stats={"lp": lp.T},
-        dims={"force": ["sample"], "disp": ["sample"], "time": ["sample"]},
-        coords={"sample": np.arange(problem.n_points)},
-    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "more chains than draws": walkers are chains
+        idata = _from_dict(az, posterior, ll, nw, nd, lp, test, problem.n_points)
+
     # posterior predictive on a thinned subset of draws (same chain/draw labels as the posterior)
     per_chain = max(1, PREDICTIVE_DRAWS // nw)
     didx = np.unique(np.linspace(0, nd - 1, min(per_chain, nd)).round().astype(int))
@@ -293,6 +288,18 @@ def build_idata(problem, chain, logp, *, burn: int, thin: int, theta_map, fixed,
     a["burn"] = int(burn)
     a["thin"] = int(thin)
     return idata
+
+
+def _from_dict(az, posterior, ll, nw, nd, lp, test, n_points):
+    return az.from_dict(
+        posterior=posterior,
+        log_likelihood={"force": ll.reshape(nw, nd, -1)},
+        observed_data={"force": np.asarray(test.force)},
+        constant_data={"disp": np.asarray(test.disp), "time": np.asarray(test.time)},
+        sample_stats={"lp": lp.T},
+        dims={"force": ["sample"], "disp": ["sample"], "time": ["sample"]},
+        coords={"sample": np.arange(n_points)},
+    )
 
 
 def simulate_noise(rng: np.random.Generator, sigma: np.ndarray, rho: np.ndarray | None, n: int) -> np.ndarray:

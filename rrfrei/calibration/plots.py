@@ -1,0 +1,107 @@
+"""Figures of a calibration (matplotlib; callers choose the backend).  Units on the axes: mm, kN."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["pair_plot", "loop_plot", "energy_plot", "cumulative_plot"]
+
+
+def _fig(nrows=1, ncols=1, size=(6.0, 4.0)):
+    import matplotlib.pyplot as plt
+
+    return plt.subplots(nrows, ncols, figsize=size, constrained_layout=True, squeeze=False)
+
+
+def pair_plot(cal, *, max_points: int = 1000, seed: int = 0):
+    """Scatter matrix of the sampled quantities with histograms on the diagonal, MAP marked."""
+    th = cal.theta()
+    names = cal.sampled
+    rng = np.random.default_rng(seed)
+    if th.shape[0] > max_points:
+        th = th[rng.choice(th.shape[0], max_points, replace=False)]
+    k = len(names)
+    fig, axes = _fig(k, k, size=(1.7 * k + 1, 1.7 * k + 1))
+    for i in range(k):
+        for j in range(k):
+            ax = axes[i, j]
+            if j > i:
+                ax.axis("off")
+                continue
+            if i == j:
+                ax.hist(th[:, i], bins=30, color="tab:blue", alpha=0.7)
+                ax.axvline(cal.map[names[i]], color="k", lw=0.8)
+            else:
+                ax.plot(th[:, j], th[:, i], ".", ms=1.5, alpha=0.4, color="tab:blue")
+                ax.plot(cal.map[names[j]], cal.map[names[i]], "k+", ms=8)
+            ax.tick_params(labelsize=6)
+            if i == k - 1:
+                ax.set_xlabel(names[j], fontsize=8)
+            if j == 0 and i > 0:
+                ax.set_ylabel(names[i], fontsize=8)
+    fig.suptitle(f"{cal.law} posterior on {cal.test.name} (black: MAP)", fontsize=9)
+    return fig
+
+
+def loop_plot(pred, title: str = "", ax=None):
+    """Measured loop, posterior mean and the 95 % band with noise."""
+    if ax is None:
+        fig, axes = _fig()
+        ax = axes[0, 0]
+    else:
+        fig = ax.figure
+    d = 1e3 * np.asarray(pred.test.disp)
+    order = np.arange(d.size)
+    ax.fill_between(order * 0 + d, pred.lower, pred.upper, color="tab:blue", alpha=0.25, lw=0,
+                    label="95 % band (with noise)")
+    ax.plot(d, pred.test.force, lw=0.6, color="0.45", label="test")
+    ax.plot(d, pred.mean, lw=0.8, color="tab:blue", label="posterior mean")
+    ax.set_xlabel("shear displacement [mm]")
+    ax.set_ylabel("shear force [kN]")
+    ax.set_title(title or f"{pred.law} on {pred.test.name}: NRMSE {100 * pred.nrmse:.1f} %, "
+                 f"coverage {100 * pred.coverage:.1f} %", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig
+
+
+def energy_plot(pred, ax=None):
+    """Energy dissipated per cycle: test, MAP and the 95 % band of the model."""
+    if ax is None:
+        fig, axes = _fig()
+        ax = axes[0, 0]
+    else:
+        fig = ax.figure
+    c = pred.cycles
+    x = np.arange(len(c))
+    if len(c):
+        ax.bar(x - 0.2, c["energy_test"], width=0.4, color="0.5", label="test")
+        ax.bar(x + 0.2, c["energy_map"], width=0.4, color="tab:blue", label="MAP")
+        if "energy_lo" in c:
+            ax.errorbar(x + 0.2, c["energy_map"], yerr=[np.clip(c["energy_map"] - c["energy_lo"], 0, None),
+                                                        np.clip(c["energy_hi"] - c["energy_map"], 0, None)],
+                        fmt="none", ecolor="k", capsize=2, label="95 % band")
+    ax.set_xlabel("cycle")
+    ax.set_ylabel("energy per cycle [kN m]")
+    ax.set_title(f"{pred.law} on {pred.test.name}: energy per cycle", fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, axis="y")
+    return fig
+
+
+def cumulative_plot(pred, ax=None):
+    """Cumulative dissipated energy against sample index (or time): test vs MAP."""
+    if ax is None:
+        fig, axes = _fig()
+        ax = axes[0, 0]
+    else:
+        fig = ax.figure
+    t = pred.test.time
+    ax.plot(t, pred.cumulative_test, color="0.4", label="test")
+    ax.plot(t, pred.cumulative_map, color="tab:blue", label="MAP")
+    ax.set_xlabel("time [s]" if pred.test.has_time else "sample")
+    ax.set_ylabel("cumulative energy [kN m]")
+    ax.set_title(f"{pred.law} on {pred.test.name}: cumulative energy", fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    return fig
