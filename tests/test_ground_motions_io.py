@@ -192,6 +192,11 @@ def test_at2_with_a_missing_line_or_a_contradicting_dt_is_rejected(tmp_path):
         gm.read(p)
     with pytest.raises(ValueError, match="the file says dt = 0.005"):
         gm.read(record_path("landers"), dt=0.01)
+    bad_dt = lines.copy()
+    bad_dt[3] = "NPTS=   9625, DT=   .0000 SEC,\n"
+    p.write_text("".join(bad_dt))
+    with pytest.raises(ValueError, match=r"short.AT2, line 4: time step dt = 0.0 s must be finite and > 0"):
+        gm.read(p)
     lines[7] = lines[7].replace("E", "Q", 1)
     p.write_text("".join(lines))
     with pytest.raises(ValueError, match=r"line 8: value '.*Q.*' is not a number"):
