@@ -1,0 +1,134 @@
+"""Reusable displacement-control openseespy driver for the four OpenSees bearing laws.
+
+Follows ``/work/shared/reference/opensees_elements.md`` section 6 exactly: a zero-length element
+between a fixed node and a node whose global X DOF is imposed by ``sp(j, 1, 1.0)`` in a Plain
+pattern on a Path series (``-dt 1``, one padding value appended because PathSeries returns 0 at
+its last sample), the vertical DOF free on an elastic axial material/stiffness, every other DOF
+fixed; Transformation constraints, Plain numberer, BandGeneral, NormDispIncr 1e-12, Newton,
+LoadControl 1.0, so analysis step k lands exactly on pseudo-time k and imposes ``disp[k-1]``.
+
+* 2-D (plasticity, bouc_wen): ``-orient 0 1 0 -1 0 0`` makes the basic shear deformation
+  ``-u_X``; we impose ``u_X = -disp`` so the basic deformation is ``disp`` and return the basic
+  force ``-F_X`` (node j global X force): no reliance on the laws' odd symmetry.
+* 3-D (elastomeric_x, hdr): orientation ``0 0 1 1 0 0`` makes the basic shear ``+u_X``; the
+  force is ``+F_X``.  ElastomericX receives all 29 arguments, HDR all 32.
+
+Use :func:`element_force` (one ``analyze(1)`` per sample, reads ``eleResponse``) in tests and
+:func:`element_force_recorder` (one ``analyze(n)`` call, element recorder to a file: openseespy's
+fastest path) in benchmarks.  Law parameters are the rrfrei ones (kN, m).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import numpy as np
+
+AXIAL_K = 1.0e6  # kN/m, elastic axial (and rotational) stiffness of the 2-D bearings
+KBULK = 2.0e6  # kN/m^2, rubber bulk modulus (enters only vertical terms)
+TS = 0.001  # m, steel shim thickness (vertical terms only)
+HDR_GEOMETRY = {"gr": 500.0, "d1": 0.0, "d2": 0.3, "tr": 0.005, "n": 20}  # vertical terms only
+
+TWO_D = ("plasticity", "bouc_wen")
+THREE_D = ("elastomeric_x", "hdr")
+
+
+def _element_args(law: str, p: dict) -> list:
+    if law == "plasticity":
+        return ["elastomericBearingPlasticity", 1, 1, 2, p["k_init"], p["qd"], p["alpha1"],
+                p["alpha2"], p["mu"], "-P", 1, "-Mz", 2, "-orient", 0, 1, 0, -1, 0, 0]
+    if law == "bouc_wen":
+        return ["elastomericBearingBoucWen", 1, 1, 2, p["k_init"], p["qd"], p["alpha1"],
+                p["alpha2"], p["mu"], p["eta"], p["beta"], p["gamma"], "-P", 1, "-Mz", 2,
+                "-orient", 0, 1, 0, -1, 0, 0]
+    if law == "elastomeric_x":
+        # Fy alpha Gr Kbulk D1 D2 ts tr n | x1 x2 x3 y1 y2 y3 | kc PhiM ac sDratio m cd tc tag1-4
+        return ["ElastomericX", 1, 1, 2, p["fy"], p["alpha"], p["gr"], KBULK, p.get("d1", 0.0),
+                p["d2"], TS, p["tr"], float(p["n"]), 0, 0, 1, 1, 0, 0,
+                10.0, 0.5, 1.0, 0.5, 0.0, p.get("cd", 0.0), p.get("tc", 0.0), 0, 0, 0, 0]
+    if law == "hdr":
+        g = HDR_GEOMETRY
+        # Gr Kbulk D1 D2 ts tr n a1..c4 | x1..y3 | kc PhiM ac sDratio m tc
+        return ["HDR", 1, 1, 2, g["gr"], KBULK, g["d1"], g["d2"], TS, g["tr"], float(g["n"]),
+                p["a1"], p["a2"], p["a3"], p["b1"], p["b2"], p["b3"], p["c1"], p["c2"], p["c3"],
+                p["c4"], 0, 0, 1, 1, 0, 0, 10.0, 0.5, 1.0, 0.5, 0.0, 0.0]
+    raise ValueError(f"no OpenSees element for law {law!r}")
+
+
+def _build(ops, law: str, params: dict, disp: np.ndarray) -> tuple[int, float]:
+    """Build the model; return (index of the node-j X component in eleResponse force, sign)."""
+    ops.wipe()
+    if law in TWO_D:
+        ops.model("basic", "-ndm", 2, "-ndf", 3)
+        ops.node(1, 0.0, 0.0)
+        ops.node(2, 0.0, 0.0)
+        ops.fix(1, 1, 1, 1)
+        ops.fix(2, 0, 0, 1)
+        ops.uniaxialMaterial("Elastic", 1, AXIAL_K)
+        ops.uniaxialMaterial("Elastic", 2, AXIAL_K)
+        idx, sign = 3, -1.0
+    elif law in THREE_D:
+        ops.model("basic", "-ndm", 3, "-ndf", 6)
+        ops.node(1, 0.0, 0.0, 0.0)
+        ops.node(2, 0.0, 0.0, 0.0)
+        ops.fix(1, 1, 1, 1, 1, 1, 1)
+        ops.fix(2, 0, 1, 0, 1, 1, 1)
+        idx, sign = 6, 1.0
+    else:
+        raise ValueError(f"no OpenSees element for law {law!r}")
+    ops.element(*_element_args(law, params))
+    values = [0.0, *(sign * np.asarray(disp, dtype=float)).tolist(), sign * float(disp[-1])]
+    ops.timeSeries("Path", 1, "-dt", 1.0, "-values", *values)
+    ops.pattern("Plain", 1, 1)
+    ops.sp(2, 1, 1.0)
+    ops.constraints("Transformation")
+    ops.numberer("Plain")
+    ops.system("BandGeneral")
+    ops.test("NormDispIncr", 1e-12, 100)
+    ops.algorithm("Newton")
+    ops.integrator("LoadControl", 1.0)
+    ops.analysis("Static")
+    return idx, sign
+
+
+def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int]:
+    """Basic shear force [kN] of the OpenSees element along ``disp`` [m].
+
+    Returns ``(force, n_ok)``: ``n_ok`` samples converged (``n_ok < len(disp)`` when OpenSees
+    failed at sample ``n_ok``; the remaining forces are NaN).
+    """
+    disp = np.asarray(disp, dtype=float)
+    idx, sign = _build(ops, law, params, disp)
+    out = np.full(disp.size, np.nan)
+    for k in range(disp.size):
+        if ops.analyze(1) != 0:
+            ops.wipe()
+            return out, k
+        out[k] = sign * ops.eleResponse(1, "force")[idx]
+    ops.wipe()
+    return out, disp.size
+
+
+def element_force_recorder(ops, law: str, params: dict, disp, path: str | None = None) -> np.ndarray:
+    """Same as :func:`element_force` with one ``analyze(n)`` call and an element recorder.
+
+    Raises RuntimeError if the analysis fails.
+    """
+    disp = np.asarray(disp, dtype=float)
+    idx, sign = _build(ops, law, params, disp)
+    own = path is None
+    if own:
+        fd, path = tempfile.mkstemp(suffix=".out")
+        os.close(fd)
+    try:
+        ops.recorder("Element", "-file", path, "-ele", 1, "force")
+        status = ops.analyze(disp.size)
+        ops.wipe()  # flushes and closes the recorder
+        if status != 0:
+            raise RuntimeError(f"OpenSees analysis of {law} failed (status {status})")
+        data = np.loadtxt(path, ndmin=2)
+    finally:
+        if own:
+            os.unlink(path)
+    return sign * data[-disp.size:, idx]
