@@ -1,0 +1,111 @@
+"""Uniaxial test data for rubber fits: CSV (``time_s``, ``stretch``, ``stress_MPa`` or ``stress_kPa``,
+nominal stress F/A0) and the MATLAB v5 struct of the bundled VHB 4910 data (``data.xdata`` =
+[time s, stretch], ``data.ydata`` = nominal stress kPa)."""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+DATA_DIR = Path(__file__).with_name("data")
+VHB4910 = DATA_DIR / "vhb4910_data.mat"
+_SCALE = {"stress_MPa": 1.0, "stress_kPa": 1e-3, "stress_Pa": 1e-6}
+
+
+@dataclass(frozen=True)
+class Test:
+    """One uniaxial test: sample times (s), stretches and nominal stress (MPa)."""
+
+    name: str
+    time: np.ndarray
+    stretch: np.ndarray
+    stress: np.ndarray
+
+    def __post_init__(self) -> None:
+        n = np.asarray(self.time).shape
+        if np.asarray(self.stretch).shape != n or np.asarray(self.stress).shape != n or len(n) != 1:
+            raise ValueError(f"{self.name}: time, stretch and stress must be 1-D arrays of equal length")
+        if n[0] < 2:
+            raise ValueError(f"{self.name}: expected at least 2 samples")
+        t = np.asarray(self.time)
+        bad = np.nonzero(np.diff(t) <= 0)[0]
+        if bad.size:
+            raise ValueError(f"{self.name}: column time_s not strictly increasing at row {bad[0] + 2}")
+        if not np.any(np.asarray(self.stress) != 0):
+            raise ValueError(f"{self.name}: stress is zero everywhere")
+
+
+def _read_csv(path: Path) -> Test:
+    with path.open(newline="") as fh:
+        rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+    if not rows:
+        raise ValueError(f"{path}: empty file")
+    head = [h.strip() for h in rows[0]]
+    for need in ("time_s", "stretch"):
+        if need not in head:
+            raise ValueError(f"{path}: missing column {need!r} (have {head})")
+    scol = [h for h in head if h in _SCALE]
+    if len(scol) != 1:
+        raise ValueError(f"{path}: expected exactly one stress column of {sorted(_SCALE)} (have {head})")
+    cols = {"time_s": head.index("time_s"), "stretch": head.index("stretch"), scol[0]: head.index(scol[0])}
+    out = {k: [] for k in cols}
+    for i, r in enumerate(rows[1:], start=2):
+        for k, j in cols.items():
+            try:
+                v = float(r[j])
+            except (IndexError, ValueError):
+                raise ValueError(f"{path}: row {i}, column {k!r}: "
+                                 f"{(r[j] if j < len(r) else '<missing>')!r} is not a number") from None
+            if not math.isfinite(v):
+                raise ValueError(f"{path}: row {i}, column {k!r}: non-finite value {v}")
+            if k == "stretch" and v <= 0:
+                raise ValueError(f"{path}: row {i}, column 'stretch': {v} is not a positive stretch")
+            out[k].append(v)
+    return Test(path.name, np.array(out["time_s"]), np.array(out["stretch"]),
+                np.array(out[scol[0]]) * _SCALE[scol[0]])
+
+
+def _read_mat(path: Path) -> Test:
+    from scipy.io import loadmat
+
+    try:
+        d = loadmat(str(path))["data"]
+        x = np.asarray(d["xdata"][0][0], dtype=float)
+        y = np.asarray(d["ydata"][0][0], dtype=float).ravel()
+    except Exception as exc:
+        raise ValueError(f"{path}: expected a MATLAB struct 'data' with xdata [time, stretch] and "
+                         f"ydata [stress kPa] ({exc})") from None
+    if x.ndim != 2 or x.shape[1] != 2 or x.shape[0] != y.size:
+        raise ValueError(f"{path}: data.xdata shape {x.shape} and data.ydata size {y.size} do not match")
+    return Test(path.name, x[:, 0].copy(), x[:, 1].copy(), y * 1e-3)
+
+
+def read_test(path: str | Path) -> Test:
+    """Read a uniaxial test (.csv or .mat) -> :class:`Test` (stress in MPa, nominal).
+
+    Raises ValueError naming the file, column and row of bad input.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"{p}: no such file")
+    if p.suffix.lower() == ".mat":
+        return _read_mat(p)
+    return _read_csv(p)
+
+
+def write_test(path: str | Path, test: Test) -> None:
+    """Write a :class:`Test` as CSV with columns time_s, stretch, stress_MPa."""
+    with Path(path).open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["time_s", "stretch", "stress_MPa"])
+        for a, b, c in zip(test.time, test.stretch, test.stress):
+            w.writerow([repr(float(a)), repr(float(b)), repr(float(c))])
+
+
+def load_vhb4910() -> Test:
+    """The bundled VHB 4910 load-unload test (Miles et al. 2015; MIT, see rubber/data/LICENSE_vhb4910.md)."""
+    return _read_mat(VHB4910)
