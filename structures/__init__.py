@@ -1,0 +1,26 @@
+"""Shear buildings on isolators: models, time histories, energy balance, propagation.
+
+Layers: :mod:`structures.newmark` holds the Numba kernels (Newmark + Newton over a tridiagonal
+chain, calling ``rrfrei.laws.kernel.step`` for the isolator) and the public verbs
+:func:`time_history` / :func:`time_history_batch`; :mod:`structures.building` the frozen models
+(:class:`ShearBuilding`, :class:`Isolator`) with modal analysis and TOML loading;
+:mod:`structures.energy` the energy balance; :mod:`structures.propagate` posterior propagation.
+
+>>> import structures
+>>> structures.available_buildings()
+('five_story', 'three_story')
+"""
+
+from structures.building import Isolator, ShearBuilding, available_buildings, load_building
+from structures.newmark import ConvergenceError, Response, time_history, time_history_batch
+
+__all__ = [
+    "ConvergenceError",
+    "Isolator",
+    "Response",
+    "ShearBuilding",
+    "available_buildings",
+    "load_building",
+    "time_history",
+    "time_history_batch",
+]
