@@ -4,6 +4,8 @@ Layers: Numba kernels (``integrate``) -> frozen model dataclasses and ``simulate
 protocols, test I/O, CMA-ES ``fit``, the cross-protocol study and material cards -> ``python -m rubber``.
 """
 
+from .fit import FitResult, fit, objective
+from .io import Test, read_test
 from .prf import (
     PARAM_NAMES,
     BBChain,
@@ -18,8 +20,6 @@ from .prf import (
 )
 from .protocols import protocol1, protocol2
 from .study import BOX, PRESETS, cases
-from .io import Test, read_test
-from .fit import FitResult, fit, objective
 
 __all__ = [
     "PARAM_NAMES", "BBChain", "NeoHookean", "PRFModel", "PRFParams", "SimResult", "Yeoh",

@@ -134,7 +134,8 @@ class _Space:
     def values(self, x):
         x = np.clip(x, 0.0, 1.0)
         lin = self.lo + x * (self.hi - self.lo)
-        lg = np.exp(np.log(np.maximum(self.lo, 1e-300)) + x * (np.log(self.hi) - np.log(np.maximum(self.lo, 1e-300))))
+        llo = np.log(np.maximum(self.lo, 1e-300))
+        lg = np.exp(llo + x * (np.log(self.hi) - llo))
         return np.where(self.log, lg, lin)
 
     def params(self, x) -> PRFParams:
@@ -296,7 +297,8 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
     p = space.params(xb)
     fs = objective(p, tests, tau=tau, rtol=min(rtol, 1e-8))
     fim, corr, rs = fisher_information(p, tests, free, tau=tau)
-    return FitResult(p, {t.name: float(v) for t, v in zip(tests, fs)}, float(np.sum(fs)), nev, free, fim, corr,
+    fd = {t.name: float(v) for t, v in zip(tests, fs)}
+    return FitResult(p, fd, float(np.sum(fs)), nev, free, fim, corr,
                      rs, combinations(p, tau=tau), [(float(r[1]), int(r[2])) for r in runs])
 
 

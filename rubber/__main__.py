@@ -1,0 +1,157 @@
+"""Command line: ``python -m rubber fit|predict|cases|cards`` (user errors: one line on stderr, exit 2)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+EXAMPLES = {
+    "fit": "example: python -m rubber fit p1.csv p2.csv --out fitdir --bounds auto --json",
+    "predict": "example: python -m rubber predict --params fitdir/params.json p1.csv --json",
+    "cases": "example: python -m rubber cases p1.csv p2.csv --out study",
+    "cards": "example: python -m rubber cards --params fitdir/params.json --out cards",
+}
+
+
+class UserError(Exception):
+    pass
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m rubber", description="PRF (Yeoh + Bergstrom-Boyce) model: "
+                                "fit, predict, cross-protocol study, material cards (MPa, s).",
+                                epilog="\n".join(EXAMPLES.values()),
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="cmd", required=True)
+    f = sub.add_parser("fit", help="fit tests (CSV/.mat) with CMA-ES", epilog=EXAMPLES["fit"])
+    f.add_argument("tests", nargs="+")
+    f.add_argument("--out", required=True)
+    f.add_argument("--bounds", default=None, help="'auto' or a JSON file {name: [lo, hi]}")
+    f.add_argument("--seed", type=int, default=0)
+    f.add_argument("--restarts", type=int, default=2)
+    f.add_argument("--max-evals", type=int, default=6000)
+    f.add_argument("--json", action="store_true")
+    q = sub.add_parser("predict", help="error f of a parameter set on tests", epilog=EXAMPLES["predict"])
+    q.add_argument("--params", required=True)
+    q.add_argument("tests", nargs="+")
+    q.add_argument("--json", action="store_true")
+    c = sub.add_parser("cases", help="cross-prediction study (cases A, B, C)", epilog=EXAMPLES["cases"])
+    c.add_argument("p1")
+    c.add_argument("p2")
+    c.add_argument("--out", required=True)
+    c.add_argument("--seed", type=int, default=0)
+    c.add_argument("--restarts", type=int, default=2)
+    c.add_argument("--max-evals", type=int, default=6000)
+    k = sub.add_parser("cards", help="Marc/Abaqus cards, curves, equivalent linear", epilog=EXAMPLES["cards"])
+    k.add_argument("--params", required=True)
+    k.add_argument("--out", required=True)
+    return p
+
+
+def _read_params(path: str):
+    from .prf import PRFParams
+
+    try:
+        d = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise UserError(f"{path}: cannot read parameters ({exc})") from None
+    return PRFParams.from_dict(d.get("params", d))
+
+
+def _figure(params, tests, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .prf import simulate
+
+    fig, axes = plt.subplots(1, len(tests), figsize=(5 * len(tests), 4), squeeze=False)
+    for ax, t in zip(axes[0], tests):
+        ax.plot(t.stretch, t.stress, "k.", ms=2, label="data")
+        ax.plot(t.stretch, simulate(params, t.time, t.stretch).nominal, "r-", label="model")
+        ax.set(xlabel="stretch", ylabel="nominal stress (MPa)", title=t.name)
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _run(a) -> int:
+    from .fit import fit, objective
+    from .io import read_test
+
+    if a.cmd == "fit":
+        tests = [read_test(x) for x in a.tests]
+        bounds = a.bounds
+        if bounds not in (None, "auto"):
+            try:
+                bounds = json.loads(Path(bounds).read_text())
+            except (OSError, json.JSONDecodeError) as exc:
+                raise UserError(f"--bounds {a.bounds}: expected 'auto' or a JSON file ({exc})") from None
+        r = fit(tests, bounds=bounds, seed=a.seed, restarts=a.restarts, max_evals=a.max_evals)
+        out = Path(a.out)
+        out.mkdir(parents=True, exist_ok=True)
+        doc = {"params": r.params.as_dict(), "f": r.f, "f_total": r.f_total}
+        (out / "params.json").write_text(json.dumps({**doc, "combinations": r.combinations,
+                                                     "rel_sigma": r.rel_sigma, "evaluations": r.evaluations},
+                                                    indent=2))
+        _figure(r.params, tests, out / "fit.png")
+        print(json.dumps(doc) if a.json else r.summary())
+    elif a.cmd == "predict":
+        p = _read_params(a.params)
+        tests = [read_test(x) for x in a.tests]
+        f = {t.name: float(v) for t, v in zip(tests, objective(p, tests, rtol=1e-8))}
+        print(json.dumps({"f": f}) if a.json else "\n".join(f"{k}: f = {v:.4e}" for k, v in f.items()))
+    elif a.cmd == "cases":
+        from .study import cases
+
+        r = cases(read_test(a.p1), read_test(a.p2), seed=a.seed, restarts=a.restarts, max_evals=a.max_evals)
+        out = Path(a.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "table.txt").write_text(r.table() + "\n")
+        (out / "cases.json").write_text(json.dumps({c: {"params": x.params.as_dict(), "f": r.f[c]}
+                                                    for c, x in r.fits.items()}, indent=2))
+        _cases_figure(r, [read_test(a.p1), read_test(a.p2)], out / "cases.png")
+        print(r.table())
+    elif a.cmd == "cards":
+        from .cards import write_cards
+
+        write_cards(_read_params(a.params), a.out)
+        print(f"wrote {a.out}/material.json, abaqus.inp, curves.csv, relaxation_creep.csv")
+    return 0
+
+
+def _cases_figure(r, tests, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .prf import simulate
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for ax, t in zip(axes, tests):
+        ax.plot(t.time, t.stress, "k.", ms=2, label="data")
+        for c, x in r.fits.items():
+            ax.plot(t.time, simulate(x.params, t.time, t.stretch).nominal, label=f"case {c}")
+        ax.set(xlabel="time (s)", ylabel="nominal stress (MPa)", title=t.name)
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = _parser().parse_args(argv)
+    try:
+        return _run(a)
+    except (UserError, ValueError, OSError) as exc:
+        print(f"error: {exc}".splitlines()[0], file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
