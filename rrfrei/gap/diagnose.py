@@ -1,0 +1,383 @@
+"""Which effect closes the gap: screen, refit, rank, combine (issue 7).
+
+Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
+
+1. fit the baseline on the calibration data; residual segment table ("where") and the signature
+   screen of every catalogue effect;
+2. refit every effect's augmented model (optimum, then the Laplace posterior) and score its gain
+   in expected predictive accuracy: the leave-one-cycle-out elpd difference on the calibration
+   data (PSIS on cycle-summed log-likelihoods, Vehtari, Gelman & Gabry 2017, ``arviz.psislw``;
+   paired standard error over cycles) and, with held-out data, the difference of held-out log
+   predictive density summed per held-out cycle, with its paired standard error;
+3. an effect is *significant* when its calibration gain exceeds 2 se (and 4 nats) and, with
+   held-out data, its held-out gain also exceeds 2 se and its held-out systematic gap shrinks.
+   The diagnosis is the significant effect with the largest held-out gain (calibration gain
+   without held-out data), or ``none``;
+4. confounding guard: a protocol whose amplitude only grows moves amplitude, dissipated energy
+   and time together, so on the calibration test alone degradation, scragging, rollover and slip
+   can stand in for one another.  Every refit starts from the baseline optimum and from the
+   baseline fitted to the first half of the test only (before late effects set in).  Without held-out data on such a protocol the winner must also
+   beat every other significant effect in a paired leave-one-cycle-out comparison by 2 se; else
+   the diagnosis is ``none`` and the report names the tied effects;
+5. greedy combination: add the best further effect (refit from the current combination) while
+   it stays significant against the current combination by the same rule.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.special import logsumexp
+
+from rrfrei.gap.catalogue import CATALOGUE, ScreenContext, screen_all
+from rrfrei.gap.model import FitResult, GapModel, IsolatorModel, velocity, white_noise
+from rrfrei.gap.residuals import cycle_levels, energy_error, gap, segment_table, systematic_gap
+from rrfrei.io import ShearTest, read_test
+
+__all__ = ["EffectScore", "Metrics", "GapReport", "diagnose", "diagnose_gap", "CONFOUNDED"]
+
+CONFOUNDED = ("degradation", "mullins", "rollover", "slip")
+"""Effects that a growing-amplitude protocol cannot tell apart on its own."""
+Z = 2.0
+MIN_GAIN = 4.0
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Gap, its systematic part, energy-per-cycle error and band coverage (pooled)."""
+
+    gap: float
+    systematic: float
+    energy_error: float
+    coverage: float
+
+    def as_dict(self) -> dict:
+        return {k: _num(v) for k, v in self.__dict__.items()}
+
+
+@dataclass(frozen=True)
+class EffectScore:
+    """One effect (or combination step) against its reference model."""
+
+    effect: str
+    law: str
+    screen: float
+    delta_elpd: float
+    se: float
+    delta_holdout: float
+    se_holdout: float
+    calibration: Metrics
+    holdout: Metrics | None
+    shrink_calibration: float
+    shrink_holdout: float
+    significant: bool
+    params: dict
+    note: str = ""
+
+    def as_dict(self) -> dict:
+        return {
+            "effect": self.effect, "law": self.law, "screen": _num(self.screen),
+            "delta_elpd": _num(self.delta_elpd), "se": _num(self.se),
+            "delta_holdout": _num(self.delta_holdout), "se_holdout": _num(self.se_holdout),
+            "shrink_calibration": _num(self.shrink_calibration),
+            "shrink_holdout": _num(self.shrink_holdout), "significant": self.significant,
+            "calibration": self.calibration.as_dict(),
+            "holdout": None if self.holdout is None else self.holdout.as_dict(),
+            "params": self.params, "note": self.note,
+        }
+
+
+@dataclass(frozen=True)
+class GapReport:
+    """Result of :func:`diagnose`: where the baseline misses, which effect, how far it shrinks."""
+
+    law: str
+    diagnosis: str
+    combination: tuple[str, ...]
+    where: pd.DataFrame
+    screens: dict[str, float]
+    ranking: tuple[EffectScore, ...]
+    steps: tuple[EffectScore, ...]
+    baseline: tuple[Metrics, Metrics | None]
+    final: tuple[Metrics, Metrics | None]
+    notes: tuple[str, ...]
+    fits: dict = field(default_factory=dict, repr=False, compare=False)
+    calibration_data: object = field(default=None, repr=False, compare=False)
+    holdout_data: tuple = field(default=(), repr=False, compare=False)
+
+    def as_dict(self) -> dict:
+        """The JSON summary of the CLI (gaps as NRMSE; holdout null without held-out data)."""
+        b, f = self.baseline, self.final
+        return {
+            "law": self.law,
+            "diagnosis": self.diagnosis,
+            "combination": list(self.combination),
+            "where": [{"axis": r.axis, "segment": r.segment, "error_share": _num(r.error_share),
+                       "coverage": _num(r.coverage)} for r in self.where.head(10).itertuples()],
+            "ranking": [{"effect": e.effect, "delta_elpd": _num(e.delta_elpd), "se": _num(e.se),
+                         "shrink_calibration": _num(e.shrink_calibration),
+                         "shrink_holdout": _num(e.shrink_holdout)} for e in self.ranking],
+            "gap_before": {"calibration": _num(b[0].gap), "holdout": None if b[1] is None else _num(b[1].gap)},
+            "gap_after": {"calibration": _num(f[0].gap), "holdout": None if f[1] is None else _num(f[1].gap)},
+            "notes": list(self.notes),
+        }
+
+
+def _num(x):
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+# ---------------------------------------------------------------------------------------------
+def _loco(ll: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """PSIS leave-one-group-out elpd of every group from pointwise log-lik (S, n)."""
+    from arviz import psislw
+
+    G = int(groups.max()) + 1
+    sums = np.stack([ll[:, groups == g].sum(axis=1) for g in range(G)], axis=0)  # (G, S)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lw, _ = psislw(-sums.copy())
+    return logsumexp(lw + sums, axis=1)
+
+
+def _lppd_groups(ll: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """Held-out log predictive density summed per group: sum_i log mean_s p(y_i | theta_s)."""
+    lp = logsumexp(ll, axis=0) - math.log(ll.shape[0])
+    G = int(groups.max()) + 1
+    return np.array([lp[groups == g].sum() for g in range(G)])
+
+
+def _paired(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    d = np.asarray(a) - np.asarray(b)
+    return float(d.sum()), float(math.sqrt(d.size * d.var(ddof=1))) if d.size > 1 else float("nan")
+
+
+class _Scorer:
+    """Caches the per-dataset quantities and scores fits."""
+
+    def __init__(self, model: GapModel, cal, holdout: Sequence) -> None:
+        self.model = model
+        self.cal = cal
+        self.holdout = tuple(holdout)
+        self.g_cal = model.groups(cal)
+        self.g_ho = [model.groups(d) for d in self.holdout]
+        self.noise: dict[int, float] = {}
+
+    def set_noise(self, fit: FitResult) -> None:
+        for d in (self.cal, *self.holdout):
+            r = self.model.observed(d) - fit.predict(d).mean
+            self.noise[id(d)] = white_noise(r)
+
+    def metrics(self, fit: FitResult, data: Sequence) -> Metrics | None:
+        if not data:
+            return None
+        ys, fs, ss, ee, cov = [], [], [], [], []
+        for d in data:
+            pr = fit.predict(d)
+            y = self.model.observed(d)
+            ys.append(y)
+            fs.append(pr.mean)
+            ss.append(np.full(y.size, self.noise[id(d)]))
+            cov.append((y >= pr.lower) & (y <= pr.upper))
+            if hasattr(d, "disp"):
+                ee.append(energy_error(d.disp, y, pr.mean))
+        y, f, s = np.concatenate(ys), np.concatenate(fs), np.concatenate(ss)
+        sig = float(np.sqrt(np.mean(s**2)))
+        ee_ok = [e for e in ee if math.isfinite(e)]
+        return Metrics(gap(y, f), systematic_gap(y, f, sig), float(np.mean(ee_ok)) if ee_ok else float("nan"),
+                       float(np.mean(np.concatenate(cov))))
+
+    def loco(self, fit: FitResult) -> np.ndarray:
+        return _loco(fit.loglik(self.cal), self.g_cal)
+
+    def lppd(self, fit: FitResult) -> np.ndarray:
+        if not self.holdout:
+            return np.zeros(0)
+        return np.concatenate([_lppd_groups(fit.loglik(d), g) for d, g in zip(self.holdout, self.g_ho)])
+
+
+def _shrink(before: float, after: float) -> float:
+    return 1.0 - after / before if before > 0 else float("nan")
+
+
+def _score(sc: _Scorer, effect: str, fit: FitResult, ref: FitResult, screen: float,
+           ref_metrics: tuple[Metrics, Metrics | None]) -> EffectScore:
+    de, se = _paired(sc.loco(fit), sc.loco(ref))
+    mc = sc.metrics(fit, [sc.cal])
+    mh = sc.metrics(fit, sc.holdout)
+    if sc.holdout:
+        dh, seh = _paired(sc.lppd(fit), sc.lppd(ref))
+        sh = _shrink(ref_metrics[1].systematic, mh.systematic)
+    else:
+        dh, seh, sh = float("nan"), float("nan"), float("nan")
+    sig = bool(de > Z * se and de > MIN_GAIN)
+    if sc.holdout:
+        sig = bool(sig and dh > Z * seh and dh > 0 and sh > 0)
+    return EffectScore(effect=effect, law=fit.name, screen=screen, delta_elpd=de, se=se,
+                       delta_holdout=dh, se_holdout=seh, calibration=mc, holdout=mh,
+                       shrink_calibration=_shrink(ref_metrics[0].systematic, mc.systematic),
+                       shrink_holdout=sh, significant=sig, params=dict(fit.params))
+
+
+def _monotone_amplitude(data) -> bool:
+    if not hasattr(data, "disp"):
+        return False
+    seg = cycle_levels(data.disp)
+    levels = [int(x) for x in seg.level[seg.cycle >= 0]]
+    return len(set(levels)) > 1 and all(b >= a for a, b in zip(levels, levels[1:]))
+
+
+def _screen_context(model: GapModel, data, fit: FitResult) -> ScreenContext | None:
+    if not isinstance(data, ShearTest):
+        return None
+    from rrfrei.energy import dissipated_energy
+
+    pr = fit.predict(data)
+    seg = cycle_levels(data.disp)
+    return ScreenContext(disp=np.asarray(data.disp), vel=velocity(data), force_pred=pr.mean,
+                         resid=np.asarray(data.force) - pr.mean,
+                         energy=dissipated_energy(data.disp, data.force), first_cycle=seg.first,
+                         has_time=bool(data.has_time))
+
+
+def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence[str] | None = None,
+             seed: int = 0, combine: bool = True, max_combination: int = 3) -> GapReport:
+    """Diagnose the gap of ``model`` on ``data`` (see the module docstring).
+
+    Parameters
+    ----------
+    model : the baseline model (a :class:`GapModel`).
+    data : calibration data; ``holdout`` : held-out data sets (the stronger evidence).
+    effects : catalogue effects to try (default all).
+    seed : seed of every fit and posterior draw.
+    combine : add further effects greedily after the first.
+    """
+    effects = list(CATALOGUE) if effects is None else list(effects)
+    for e in effects:
+        if e not in CATALOGUE:
+            raise ValueError(f"unknown effect {e!r}; available: {', '.join(CATALOGUE)}")
+    notes: list[str] = []
+    sc = _Scorer(model, data, holdout)
+    base = model.fit(data, seed=seed)
+    sc.set_noise(base)
+    bm = (sc.metrics(base, [data]), sc.metrics(base, sc.holdout))
+    pr = base.predict(data)
+    where = segment_table(data, pr.mean, pr.lower, pr.upper, sc.noise[id(data)]) \
+        if isinstance(data, ShearTest) else pd.DataFrame()
+    ctx = _screen_context(model, data, base)
+    screens = screen_all(ctx) if ctx is not None else {e: float("nan") for e in CATALOGUE}
+    fits: dict[str, FitResult] = {base.name: base}
+    starts: list[FitResult] = [base]
+    early = model.early(data) if hasattr(model, "early") else None
+    if early is not None:
+        try:  # the baseline on the small early cycles: a start untouched by late effects
+            starts.append(model.fit(early, seed=seed, start=base))
+        except ValueError:
+            pass
+    scores: list[EffectScore] = []
+    for e in effects:
+        why = model.cannot_judge(e, data)
+        if why:
+            notes.append(why)
+            continue
+        fit = model.augment([e]).fit(data, seed=seed, start=starts)
+        fits[fit.name] = fit
+        scores.append(_score(sc, e, fit, base, screens.get(e, float("nan")), bm))
+    key = (lambda s: s.delta_holdout) if sc.holdout else (lambda s: s.delta_elpd)
+    ranking = tuple(sorted(scores, key=lambda s: -key(s) if math.isfinite(key(s)) else math.inf))
+    sig = [s for s in ranking if s.significant]
+    diagnosis = "none"
+    if sig:
+        diagnosis = sig[0].effect
+        if not sc.holdout and _monotone_amplitude(data):
+            win = fits[sig[0].law]
+            tied = []
+            for other in sig[1:]:
+                if other.effect in CONFOUNDED or diagnosis in CONFOUNDED:
+                    d, s = _paired(sc.loco(win), sc.loco(fits[other.law]))
+                    if not d > Z * s:
+                        tied.append(other.effect)
+            if tied:
+                notes.append(
+                    f"the calibration protocol's amplitude only grows, so {diagnosis} cannot be told "
+                    f"apart from {', '.join(tied)} on it alone: give held-out tests (--holdout)")
+                diagnosis = "none"
+    combination: list[str] = [] if diagnosis == "none" else [diagnosis]
+    steps: list[EffectScore] = []
+    final = bm
+    if combination:
+        first = next(s for s in ranking if s.effect == diagnosis)
+        steps.append(first)
+        final = (first.calibration, first.holdout)
+        current = fits[first.law]
+        pool = [s.effect for s in sig[1:]]
+        while combine and pool and len(combination) < max_combination:
+            cand = []
+            for e in pool:
+                fit = model.augment(combination + [e]).fit(data, seed=seed, start=current)
+                fits[fit.name] = fit
+                cand.append((_score(sc, e, fit, current, screens.get(e, float("nan")), final), fit))
+            cand = [c for c in cand if c[0].significant]
+            if not cand:
+                break
+            best, fit = max(cand, key=lambda c: key(c[0]))
+            combination.append(best.effect)
+            steps.append(best)
+            final = (best.calibration, best.holdout)
+            current = fit
+            pool.remove(best.effect)
+    return GapReport(law=model.name, diagnosis=diagnosis, combination=tuple(combination), where=where,
+                     screens=screens, ranking=ranking, steps=tuple(steps), baseline=bm, final=final,
+                     notes=tuple(notes), fits=fits, calibration_data=data, holdout_data=tuple(holdout))
+
+
+def _as_test(t, what: str) -> ShearTest:
+    if isinstance(t, ShearTest):
+        return t
+    if isinstance(t, str) and t in ("protocol1", "protocol2", "protocol3", "protocol4"):
+        from rrfrei.io import load_test
+
+        return load_test(t)
+    try:
+        return read_test(t)
+    except TypeError:
+        raise ValueError(f"{what} must be a ShearTest or a CSV path, got {type(t).__name__}") from None
+
+
+def diagnose_gap(test, law: str = "bouc_wen", *, holdout: Sequence = (), effects: Sequence[str] | None = None,
+                 fixed: dict | None = None, draws: int = 200, seed: int = 0,
+                 combine: bool = True) -> GapReport:
+    """Sim-to-real gap diagnosis of ``law`` calibrated on ``test`` (isolator laws).
+
+    Parameters
+    ----------
+    test : calibration test (:class:`~rrfrei.io.ShearTest`, CSV path, or a bundled name
+        ``"protocol1"``).
+    law : base law name (``rrfrei.laws.names()``).
+    holdout : held-out tests (same kinds).
+    effects : catalogue effects to try (default all six).
+    fixed : base-law parameters held fixed (e.g. ``{"alpha2": 0.0}``).
+    draws : Laplace posterior draws per fit.
+    seed : seed of all fits and draws.
+
+    Returns
+    -------
+    GapReport
+    """
+    from rrfrei.laws import get
+
+    spec = get(law)
+    if spec.effects:
+        raise ValueError(f"law must be a base law, got the augmented law {spec.name!r}")
+    cal = _as_test(test, "test")
+    hos = [_as_test(h, "holdout") for h in holdout]
+    return diagnose(IsolatorModel(spec, fixed=fixed, draws=draws), cal, hos, effects=effects, seed=seed,
+                    combine=combine)

@@ -1,0 +1,378 @@
+"""The generic model interface of the gap engine and its isolator implementation.
+
+The engine (:mod:`rrfrei.gap.diagnose`) needs only three verbs of a model, so any family of
+models (isolator laws here; the rubber package's PRF chains later) can be diagnosed:
+
+* ``model.fit(data, seed=..., start=...) -> FitResult`` (optimum then a short posterior);
+* ``fit.predict(data) -> Prediction`` (posterior-mean force, predictive band, per-draw forces);
+* ``fit.loglik(data) -> (draws, points)`` pointwise log-likelihood under the posterior draws;
+
+plus ``model.observed(data)``, ``model.groups(data)`` (the exchangeable units left out together:
+loading cycles) and ``model.augment(effects)``.
+
+Isolator implementation (:class:`IsolatorModel`)
+------------------------------------------------
+Fit: the optimum of the law parameters under iid Gaussian residuals (noise profiled out, flat
+priors inside the physical bounds) by bounded least squares (``scipy.optimize.least_squares``,
+trust-region reflective) from several starts: the baseline starts from the CMA-ES optimum of
+:func:`rrfrei.calibration.sampler.find_map` (the calibration code's global search); an augmented
+law starts from the baseline optimum with each effect at the catalogue's starting values.
+Posterior: the Laplace approximation ``N(theta*, sigma^2 (J^T J)^+)`` (pseudo-inverse: unidentified
+directions get no spread) with ``sigma^2 ~ RSS / chi2_{n-k}``, ``draws`` samples clipped to the
+bounds.  This is the "short posterior" of the diagnosis; the full emcee posterior of
+:func:`rrfrei.calibrate` is the reference for reporting a chosen law.
+
+The *noise level* (for the systematic part of the gap) is the white part of the residuals,
+``sigma_n = 1.4826 MAD(diff(r)) / sqrt(2)`` (von Neumann 1941 successive differences): a smooth
+systematic misfit barely changes between samples while white noise does.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from rrfrei.gap.catalogue import CATALOGUE, Scales
+from rrfrei.io import ShearTest
+from rrfrei.laws import LawSpec, get
+from rrfrei.laws.kernel import run_history
+
+__all__ = ["GapModel", "FitResult", "Prediction", "IsolatorModel", "IsolatorFit", "white_noise",
+           "test_scales"]
+
+LEVEL = 0.95
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Posterior-mean prediction, predictive band (``LEVEL``) and the per-draw model outputs."""
+
+    mean: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    draws: np.ndarray  # (S, n) model outputs without noise
+    sigma: np.ndarray  # (S,) noise sd of each draw
+
+
+class FitResult(ABC):
+    """A fitted model: name, parameters at the optimum, noise levels, predictions, scores."""
+
+    name: str
+    params: dict[str, float]
+    sigma: float  # likelihood noise sd at the optimum (all residual)
+    noise: float  # white-noise level of the residuals
+
+    @abstractmethod
+    def predict(self, data) -> Prediction: ...
+
+    @abstractmethod
+    def loglik(self, data) -> np.ndarray: ...
+
+
+class GapModel(ABC):
+    """A family of models the gap engine can fit, augment and score."""
+
+    name: str
+
+    @abstractmethod
+    def fit(self, data, *, seed: int = 0, start: FitResult | None = None) -> FitResult: ...
+
+    @abstractmethod
+    def augment(self, effects: Sequence[str]) -> GapModel: ...
+
+    @abstractmethod
+    def observed(self, data) -> np.ndarray: ...
+
+    @abstractmethod
+    def groups(self, data) -> np.ndarray: ...
+
+    def cannot_judge(self, effect: str, data) -> str | None:
+        """Why ``effect`` cannot be judged on ``data`` (None when it can)."""
+        return None
+
+
+# ---------------------------------------------------------------------------------------------
+def white_noise(resid: np.ndarray) -> float:
+    """White-noise sd of a residual series from its successive differences (robust MAD)."""
+    d = np.diff(np.asarray(resid, dtype=float))
+    if d.size == 0:
+        return float("nan")
+    mad = float(np.median(np.abs(d - np.median(d))))
+    return 1.4826 * mad / math.sqrt(2.0)
+
+
+def velocity(test: ShearTest) -> np.ndarray:
+    """Backward-difference velocity [m/s] as the kernels see it (zeros without real time)."""
+    v = np.zeros(len(test))
+    if test.has_time:
+        v[1:] = np.diff(test.disp) / np.diff(test.time)
+    return v
+
+
+def test_scales(test: ShearTest) -> Scales:
+    from rrfrei.energy import dissipated_energy
+
+    f = float(np.max(np.abs(test.force)))
+    d = float(np.max(np.abs(test.disp)))
+    v = float(np.max(np.abs(velocity(test)))) or 1.0
+    e = float(np.max(np.abs(dissipated_energy(test.disp, test.force)))) or f * d
+    return Scales(force=f or 1.0, disp=d or 1.0, vel=v, energy=e)
+
+
+def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
+              out: np.ndarray | None = None) -> tuple[int, np.ndarray]:
+    n = len(test)
+    F = np.empty(n) if out is None else out
+    T = np.empty(n)
+    status, _ = run_history(spec.code, p, np.array(spec.initial_state), test.disp, test.time,
+                            bool(test.has_time), 1, F, T)
+    return int(status), F
+
+
+@dataclass(eq=False)
+class IsolatorFit(FitResult):
+    """A fitted isolator law (optimum + Laplace draws)."""
+
+    spec: LawSpec
+    p_opt: np.ndarray
+    P: np.ndarray  # (S, nparams) draws
+    sig: np.ndarray  # (S,) noise sd draws
+    sigma: float
+    noise: float
+    free: tuple[str, ...]
+    seed: int = 0
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def name(self) -> str:  # type: ignore[override]
+        return self.spec.name
+
+    @property
+    def params(self) -> dict[str, float]:  # type: ignore[override]
+        return self.spec.as_dict(self.p_opt)
+
+    def predict(self, data: ShearTest) -> Prediction:
+        key = id(data)
+        if key in self._cache:
+            return self._cache[key][1]
+        S = self.P.shape[0]
+        F = np.empty((S, len(data)))
+        ok = np.ones(S, dtype=bool)
+        for s in range(S):
+            st, _ = _simulate(self.spec, self.P[s], data, F[s])
+            ok[s] = st == 0 and np.all(np.isfinite(F[s]))
+        if not ok.any():
+            st, f0 = _simulate(self.spec, self.p_opt, data)
+            F, ok = f0[None, :], np.array([True])
+            sig = np.array([self.sigma])
+        else:
+            sig = self.sig[: F.shape[0]]
+        F, sig = F[ok], sig[ok]
+        rng = np.random.default_rng(self.seed + 1)
+        Y = F + rng.normal(size=F.shape) * sig[:, None]
+        a = (1 - LEVEL) / 2
+        lo, hi = np.quantile(Y, [a, 1 - a], axis=0)
+        pred = Prediction(mean=F.mean(axis=0), lower=lo, upper=hi, draws=F, sigma=sig)
+        self._cache[key] = (data, pred)  # keep data alive so id() stays unique
+        return pred
+
+    def loglik(self, data: ShearTest) -> np.ndarray:
+        pred = self.predict(data)
+        r = np.asarray(data.force)[None, :] - pred.draws
+        s = pred.sigma[:, None]
+        return -0.5 * (r / s) ** 2 - np.log(s) - 0.5 * math.log(2 * math.pi)
+
+
+class IsolatorModel(GapModel):
+    """An isolator law (possibly augmented) fitted to :class:`~rrfrei.io.ShearTest` data.
+
+    Parameters
+    ----------
+    law : base law name or spec (``"bouc_wen"``), possibly already augmented.
+    fixed : law parameters held at given values (e.g. ``{"alpha2": 0.0}``).
+    draws : posterior (Laplace) draws per fit.
+    """
+
+    def __init__(self, law: str | LawSpec, *, fixed: Mapping[str, float] | None = None,
+                 draws: int = 200) -> None:
+        self.spec = get(law)
+        self.fixed = dict(fixed or {})
+        for k in self.fixed:
+            self.spec.param(k)
+        if not isinstance(draws, (int, np.integer)) or draws < 10:
+            raise ValueError(f"draws must be an integer >= 10, got {draws!r}")
+        self.draws = int(draws)
+
+    @property
+    def name(self) -> str:  # type: ignore[override]
+        return self.spec.name
+
+    def augment(self, effects: Sequence[str]) -> IsolatorModel:
+        base = self.spec.name.split("+")[0]
+        have = list(self.spec.effects)
+        return IsolatorModel("+".join([base, *have, *effects]), fixed=self.fixed, draws=self.draws)
+
+    def observed(self, data: ShearTest) -> np.ndarray:
+        return np.asarray(data.force, dtype=float)
+
+    def groups(self, data: ShearTest) -> np.ndarray:
+        from rrfrei.calibration.compare import cycle_groups
+
+        return cycle_groups(np.asarray(data.disp))
+
+    def cannot_judge(self, effect: str, data: ShearTest) -> str | None:
+        if CATALOGUE[effect].needs_time and not data.has_time:
+            return f"test {data.name!r} has no time column: {effect} effects cannot be judged"
+        return None
+
+    # --- fitting ---------------------------------------------------------------------------
+    def _free(self, data: ShearTest) -> tuple[tuple[str, ...], dict[str, float]]:
+        fixed: dict[str, float] = {}
+        for p in self.spec.params:
+            if p.name in self.fixed:
+                fixed[p.name] = float(self.fixed[p.name])
+            elif p.geometry:
+                if p.name in data.geometry:
+                    fixed[p.name] = float(data.geometry[p.name])
+                elif p.optional:
+                    fixed[p.name] = float(p.default)
+                else:
+                    raise ValueError(f"law {self.spec.name!r} needs the bearing geometry {p.name} [m]")
+            elif p.optional:
+                fixed[p.name] = float(p.default)
+        free = tuple(p.name for p in self.spec.params if p.name not in fixed)
+        return free, fixed
+
+    def _base_start(self, data: ShearTest, free, fixed, seed: int) -> dict[str, float]:
+        from rrfrei.calibration import setup_problem
+        from rrfrei.calibration.sampler import find_map
+
+        base = get(self.spec.name.split("+")[0])
+        bfix = {k: v for k, v in fixed.items() if k in base.param_names}
+        prob = setup_problem(data, base, fixed=bfix)
+        theta, _ = find_map(prob, seed)
+        out = dict(bfix)
+        out.update({n: float(x) for n, x in zip(prob.free, theta[: len(prob.free)])})
+        return out
+
+    def early(self, data: ShearTest) -> ShearTest | None:
+        """The first half of the test (small amplitudes of a growing protocol), or None."""
+        n = len(data) // 2
+        if n < 50:
+            return None
+        return ShearTest(data.name + "[first half]", data.time[:n], data.disp[:n], data.force[:n],
+                         has_time=data.has_time, geometry=dict(data.geometry))
+
+    def fit(self, data: ShearTest, *, seed: int = 0,
+            start: FitResult | Sequence[FitResult] | None = None) -> IsolatorFit:
+        """Optimum and Laplace draws; ``start``: fits whose parameters seed the search (several
+        allowed: each is combined with every catalogue start of the added effects)."""
+        if not isinstance(data, ShearTest):
+            raise ValueError(f"data must be a ShearTest, got {type(data).__name__}")
+        spec = self.spec
+        free, fixed = self._free(data)
+        sc = test_scales(data)
+        extra_bases: list[dict[str, float]] = []
+        if isinstance(start, Sequence) and not isinstance(start, FitResult):
+            extra_bases = [dict(s.params) for s in start[1:]]
+            start = start[0] if start else None
+        if start is not None:
+            base_vals = dict(start.params)
+        else:
+            base_vals = self._base_start(data, free, fixed, seed) if not spec.effects else {}
+        if spec.effects and start is None:
+            base_vals = IsolatorModel(spec.name.split("+")[0], fixed=self.fixed, draws=self.draws) \
+                .fit(data, seed=seed).params
+        starts: list[dict[str, float]] = [{}]
+        scale = {n: max(abs(base_vals.get(n, 0.0)), 1e-12) for n in free}
+        box: dict[str, tuple[float, float]] = {}
+        for eff in spec.effects:
+            info = CATALOGUE[eff]
+            es = info.scales(sc)
+            scale.update({k: v for k, v in es.items() if k in free})
+            box.update(info.box(sc))
+            missing = [k for k in es if k not in base_vals]
+            if missing:
+                neutral = dict(zip([q.name for q in info.spec.params], info.spec.neutral))
+                bx = info.box(sc)
+                neutral = {k: min(max(v, bx.get(k, (v, v))[0]), bx.get(k, (v, v))[1])
+                           for k, v in neutral.items()}
+                starts = [dict(s0, **e) for s0 in starts for e in [*info.starts(sc), neutral]]
+        starts = starts + [dict(b, **s0) for b in extra_bases for s0 in starts
+                           if any(k not in base_vals for k in s0)]
+        idx = {n: i for i, n in enumerate(spec.param_names)}
+        p0 = np.array(spec.initial_state[:0].tolist() + [0.0] * len(spec.params))
+        for p in spec.params:
+            p0[idx[p.name]] = fixed.get(p.name, base_vals.get(p.name, p.default if p.optional else 0.0)
+                                        if p.name in base_vals or p.optional else _mid(p))
+        fi = np.array([idx[n] for n in free], dtype=int)
+        s_vec = np.array([scale.get(n, 1.0) for n in free])
+        lb = np.array([max(spec.param(n).lower, box.get(n, (-np.inf, 0))[0]) for n in free]) / s_vec
+        ub = np.array([min(spec.param(n).upper, box.get(n, (0, np.inf))[1]) for n in free]) / s_vec
+        y = np.asarray(data.force, dtype=float)
+        F = np.empty(len(data))
+        big = 10.0 * float(np.sqrt(np.mean(y**2))) + 1.0
+
+        def resid(x: np.ndarray) -> np.ndarray:
+            p = p0.copy()
+            p[fi] = x * s_vec
+            if spec.check is not None:
+                try:
+                    spec.check(p)
+                except ValueError:
+                    return np.full(y.size, big)
+            st, _ = _simulate(spec, p, data, F)
+            if st != 0 or not np.all(np.isfinite(F)):
+                return np.full(y.size, big)
+            return F - y
+
+        best = None
+        for s0 in starts:
+            x0 = np.array([(s0[n] if n in s0 else p0[idx[n]]) for n in free]) / s_vec
+            x0 = np.clip(x0, lb + 1e-9 * (ub - lb), ub - 1e-9 * (ub - lb))
+            try:
+                res = least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0,
+                                    max_nfev=200 * max(len(free), 1), diff_step=1e-6)
+            except ValueError:
+                continue
+            if best is None or res.cost < best.cost:
+                best = res
+        if best is None:
+            raise ValueError(f"law {spec.name!r} could not be fitted to test {data.name!r}")
+        p_opt = p0.copy()
+        p_opt[fi] = best.x * s_vec
+        r = best.fun
+        n, k = y.size, len(free)
+        rss = float(r @ r)
+        sigma = math.sqrt(rss / n)
+        # Laplace draws in the scaled coordinates
+        J = best.jac
+        cov = np.linalg.pinv(J.T @ J, rcond=1e-10) * (rss / max(n - k, 1))
+        # common random numbers: parameter j of the spec always gets the same normal column, so
+        # nested laws (base vs base+effect) are compared without Monte Carlo noise
+        S = self.draws
+        Zn = np.column_stack([np.random.default_rng([seed, int(j)]).normal(size=S) for j in fi]) \
+            if k else np.zeros((S, 0))
+        try:
+            L = np.linalg.cholesky(cov + 1e-15 * np.eye(k) * max(np.trace(cov), 1e-30))
+        except np.linalg.LinAlgError:
+            w, V = np.linalg.eigh(cov)
+            L = V * np.sqrt(np.clip(w, 0, None))
+        X = best.x[None, :] + Zn @ L.T
+        X = np.clip(X, lb, ub)
+        P = np.repeat(p_opt[None, :], S, axis=0)
+        P[:, fi] = X * s_vec
+        P[0] = p_opt
+        sig = np.sqrt(rss / np.random.default_rng([seed, 999]).chisquare(max(n - k, 1), size=S))
+        return IsolatorFit(spec=spec, p_opt=p_opt, P=P, sig=sig, sigma=sigma, noise=white_noise(r),
+                           free=free, seed=seed)
+
+
+def _mid(p) -> float:
+    lo, hi = p.lower, p.upper
+    return 0.5 * (lo + hi) if math.isfinite(lo) and math.isfinite(hi) else 0.0
