@@ -16,7 +16,8 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
 4. confounding guard: a protocol whose amplitude only grows moves amplitude, dissipated energy
    and time together, so on the calibration test alone degradation, scragging, rollover and slip
    can stand in for one another.  Every refit starts from the baseline optimum and from the
-   baseline fitted to the first half of the test only (before late effects set in).  Without held-out data on such a protocol the winner must also
+   baseline fitted to the first half of the test only (before late effects set in).
+   Without held-out data on such a protocol the winner must also
    beat every other significant effect in a paired leave-one-cycle-out comparison by 2 se; else
    the diagnosis is ``none`` and the report names the tied effects;
 5. greedy combination: add the best further effect (refit from the current combination) while
@@ -122,8 +123,10 @@ class GapReport:
             "ranking": [{"effect": e.effect, "delta_elpd": _num(e.delta_elpd), "se": _num(e.se),
                          "shrink_calibration": _num(e.shrink_calibration),
                          "shrink_holdout": _num(e.shrink_holdout)} for e in self.ranking],
-            "gap_before": {"calibration": _num(b[0].gap), "holdout": None if b[1] is None else _num(b[1].gap)},
-            "gap_after": {"calibration": _num(f[0].gap), "holdout": None if f[1] is None else _num(f[1].gap)},
+            "gap_before": {"calibration": _num(b[0].gap),
+                           "holdout": None if b[1] is None else _num(b[1].gap)},
+            "gap_after": {"calibration": _num(f[0].gap),
+                          "holdout": None if f[1] is None else _num(f[1].gap)},
             "notes": list(self.notes),
         }
 

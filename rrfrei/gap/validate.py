@@ -89,9 +89,9 @@ def _slip(u, t, p, fs, ks):
     us_c = 0.0  # slider displacement
     up_c = 0.0  # slider plastic displacement
     for i in range(n):
-        def gap(us):
-            fb, _, _ = plasticity.step(p, sc, u[i] - us, 0.0, 1.0, st)
-            fsl = min(max(ks * (us - up_c), -fs), fs)
+        def gap(us, ui=u[i], upc=up_c):
+            fb, _, _ = plasticity.step(p, sc, ui - us, 0.0, 1.0, st)
+            fsl = min(max(ks * (us - upc), -fs), fs)
             return fb - fsl
         # F_b decreases and F_slider increases with us: bracket the root around us_c
         lo, hi, w = us_c, us_c, 1e-6
@@ -237,9 +237,8 @@ def validate(seeds: int | list[int] = 1, *, cases=CASES, reduced: bool = False, 
             if progress:
                 progress(rows[-1])
     df = pd.DataFrame(rows)
-    labels = list(cases) if "none" in cases else [*cases, "none"]
-    conf = pd.crosstab(df.case, df.diagnosed).reindex(index=list(cases), columns=[c if c != "control" else "none" for c in labels if c != "none"] + ["none"], fill_value=0)
-    conf = conf.loc[:, ~conf.columns.duplicated()]
+    cols = [c for c in cases if c != "control"] + ["none"]
+    conf = pd.crosstab(df.case, df.diagnosed).reindex(index=list(cases), columns=cols, fill_value=0)
     conf.index.name = "true"
     conf.columns.name = "diagnosed"
     return ValidationResult(df, conf)
