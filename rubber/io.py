@@ -34,7 +34,8 @@ class Test:
         t = np.asarray(self.time)
         bad = np.nonzero(np.diff(t) <= 0)[0]
         if bad.size:
-            raise ValueError(f"{self.name}: column time_s not strictly increasing at row {bad[0] + 2}")
+            raise ValueError(f"{self.name}: column time_s not strictly increasing at row {bad[0] + 3} "
+                             "(header = row 1)")
         if not np.any(np.asarray(self.stress) != 0):
             raise ValueError(f"{self.name}: stress is zero everywhere")
 

@@ -74,16 +74,13 @@ def test_three_parameter_sets_match_radau_reference_to_1e_4(histories, case, pro
 
 
 def test_mises_convention_equals_frobenius_with_rescaled_c1(histories):
-    """C1_mises = C1_frob (2/3)^((C3+1)/2) exactly; the Mises run also matches the literal reference."""
+    """C1_mises = C1_frob (2/3)^((C3+1)/2) exactly (prf_model.md section 4)."""
     t, lam = histories["p1"]
     p = PRESETS["A"]
     pm = p.replace(C1_B=p.C1_B * (2 / 3) ** ((p.C3_B + 1) / 2), C1_C=p.C1_C * (2 / 3) ** ((p.C3_C + 1) / 2))
     a = simulate(p, t, lam, rtol=1e-8).nominal
     b = simulate(pm, t, lam, tau="mises", rtol=1e-8).nominal
     assert np.max(np.abs(a - b)) < 1e-12
-    ref = radau_reference(p, t, lam, tau="mises")
-    got = simulate(p, t, lam, tau="mises").nominal
-    assert np.max(np.abs(got - ref)) / np.max(np.abs(ref)) <= 1e-4
 
 
 def test_yeoh_only_matches_closed_form():
