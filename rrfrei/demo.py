@@ -152,7 +152,9 @@ def _figure(nrows: int = 1, ncols: int = 1, *, size: tuple[float, float] = (7.0,
 
 
 def _pct(x: float) -> str:
-    return f"{100 * x:.1f} %"
+    """A share as a percentage (two significant digits below 0.1 %, so small shares are not 0.0 %)."""
+    v = 100 * float(x)
+    return f"{v:.2g} %" if 0 < abs(v) < 0.1 else f"{v:.1f} %"
 
 
 def _finite_df(df: pd.DataFrame) -> pd.DataFrame:
@@ -415,8 +417,86 @@ def step_gap(ctx: DemoContext, sec: Section) -> None:
 # step 6: propagation
 # ---------------------------------------------------------------------------------------------
 def step_propagate(ctx: DemoContext, sec: Section) -> None:
-    _api("structures", "propagate")
-    raise Placeholder("the propagation is not wired into the demo yet")
+    propagate = _api("structures.propagate", "propagate")
+    load_building = _api("structures", "load_building")
+    Isolator = _api("structures", "Isolator")
+    available = _api("ground_motions", "available")
+    best = ctx.best_law
+    if best is None:
+        raise RuntimeError("this step needs the best law from the 'comparison' step, which did not finish")
+    cal = ctx.calibrations[best]
+    s = ctx.settings
+    example = load_building(s.building)
+    iso = example.isolator
+    # the example building's bearings (count, similitude scale), now following the best law
+    building = replace(example, isolator=Isolator(best, cal.map_params(), count=iso.count,
+                                                  length_scale=iso.length_scale))
+    records = tuple(s.records) if s.records is not None else tuple(available())
+    rs = propagate(cal, building, records, n_samples=s.n_samples, scales=s.scales, seed=s.seed,
+                   progress=ctx.progress)
+    summary = rs.summary()
+    split = rs.variance_split()
+    exceed = rs.exceedance()
+    sec.add_table("runs", rs.table, f"One row per analysis: {s.n_samples} posterior draws of {best} x "
+                  f"{len(records)} records x {len(s.scales)} scale(s); prototype units (m, m/s^2, kN, kN m).")
+    sec.add_table("percentiles", summary, "Median, 16/84 and 2.5/97.5 percentiles per record and over all "
+                  "records, per scale (converged runs).")
+    split_ok = split.dropna(subset=["share_params"])
+    sec.add_table("variance_split", split_ok, "Share of Var(ln demand) explained by the isolator parameters "
+                  "vs. the records (law of total variance); demands that are zero in some run have no "
+                  "logarithm and are left out.")
+    sec.add_table("exceedance", exceed, "P(demand > limit) per record and over all records.")
+    if len(s.scales) > 1:
+        frs = rs.fragility()
+        sec.add_table("fragility", pd.DataFrame(
+            [{"demand": f.demand, "limit": f.limit, "theta": f.theta, "beta": f.beta,
+              "stripes": len(f.im), "note": f.note} for f in frs if np.isfinite(f.theta)]),
+            "Lognormal fragility curves fitted across the scales (maximum likelihood, Baker 2015); "
+            "curves that cannot be fitted (no or all runs exceeding) are left out.")
+        sec.add_figure("fragility", rs.plot_fragility(), "Fragility curves.")
+    sec.add_figure("distributions", rs.plot_distributions("iso_disp_peak_m", scale=1.0 if 1.0 in s.scales
+                                                          else s.scales[0]),
+                   "Peak isolator displacement per record over the posterior draws.")
+    sec.add_figure("exceedance", rs.plot_exceedance("iso_disp_peak_m", scale=1.0 if 1.0 in s.scales
+                                                    else s.scales[0]),
+                   "Exceedance curves of the peak isolator displacement.")
+    scale = 1.0 if 1.0 in s.scales else s.scales[0]
+    row = summary[(summary["demand"] == "iso_disp_peak_m") & (summary["record"] == "all records")
+                  & (summary["scale"] == scale)].iloc[0]
+    drift = summary[(summary["demand"] == "drift_ratio_max") & (summary["record"] == "all records")
+                    & (summary["scale"] == scale)].iloc[0]
+    per_rec = summary[(summary["demand"] == "iso_disp_peak_m") & (summary["record"] != "all records")
+                      & (summary["scale"] == scale)]
+    worst_rec = per_rec.loc[per_rec["median"].idxmax()]
+    lim = rs.limits.get("iso_disp_peak_m")
+    p_ex = exceed[(exceed["demand"] == "iso_disp_peak_m") & (exceed["record"] == "all records")
+                  & (exceed["scale"] == scale)]["p_exceed"]
+    sp = split[(split["demand"] == "iso_disp_peak_m") & (split["scale"] == scale)]["share_params"]
+    n_conv = int(rs.table["converged"].astype(bool).sum())
+    reading = (
+        f"{len(rs.table)} analyses of the {s.building.replace('_', '-')} example building with its "
+        f"{iso.count} bearings following the {best} posterior ({n_conv} converged). At scale "
+        f"{fmt(scale)} the peak isolator displacement has a median of {fmt(1e3 * row['median'], 3)} mm "
+        f"over all records (16-84 %: {fmt(1e3 * row['p16'], 3)}-{fmt(1e3 * row['p84'], 3)} mm); "
+        f"{worst_rec['record']} drives it hardest (median {fmt(1e3 * worst_rec['median'], 3)} mm). "
+        f"The median peak story drift ratio is {_pct(drift['median'])}."
+    )
+    if lim is not None and len(p_ex):
+        pe = float(p_ex.iloc[0])
+        beyond = f"beyond {fmt(1e3 * lim, 3)} mm (the largest displacement tested, at prototype scale)"
+        reading += (f" None of the runs takes the isolator {beyond}" if pe == 0 else
+                    f" The chance that the isolator goes {beyond} is {_pct(pe)}")
+        ext = rs.extrapolated_share()
+        reading += (f"; {_pct(ext)} of the runs leave the calibrated range, where the law extrapolates."
+                    if np.isfinite(ext) else ".")
+    if len(sp) and np.isfinite(sp.iloc[0]):
+        reading += (f" The isolator parameters explain {_pct(float(sp.iloc[0]))} of the variance of the "
+                    f"log peak isolator displacement; the records explain most of the rest"
+                    if float(sp.iloc[0]) < 0.5 else
+                    f" The isolator parameters explain {_pct(float(sp.iloc[0]))} of the variance of the "
+                    f"log peak isolator displacement, more than the records")
+        reading += " (law of total variance)."
+    sec.reading = reading
 
 
 # ---------------------------------------------------------------------------------------------
