@@ -214,3 +214,83 @@ def test_a_killed_run_resumes_with_no_lost_and_no_duplicated_rows(small_case, tm
     assert len(resumed.table) == 12 * 2 * 2
     assert not resumed.table.duplicated(["sample", "record", "scale"]).any()
     pd.testing.assert_frame_equal(resumed.table, fresh.table)
+
+
+# ------------------------------------------------------------------------------------ convergence
+ZETA = 0.05
+K0, SIG = 1750.0, 0.3  # median [kN/m] and log-sd of the isolator stiffness
+
+
+def _sdof_building() -> structures.ShearBuilding:
+    """A 50 t slab on a 50 t base, story 1e7 kN/m (0.014 s: rigid next to T ~ 1.5 s), no damping.
+
+    On a linear isolator (k, c) it is an SDOF of mass M = 100 t: T = 2 pi sqrt(M / k) and
+    zeta = c / (2 sqrt(k M)).
+    """
+    return structures.ShearBuilding(
+        story_masses=[50.0], story_stiffness=[1.0e7], story_heights=[3.0], damping_ratio=0.0,
+        base_mass=50.0, isolator=structures.Isolator("linear", {"k": K0, "c": 0.0}, 1, 1.0),
+    )
+
+
+def _lognormal_stiffness_posterior(n: int, seed: int) -> pd.DataFrame:
+    k = K0 * np.exp(SIG * np.random.default_rng(seed).standard_normal(n))
+    df = pd.DataFrame({"k": k, "c": 2.0 * ZETA * np.sqrt(k * 100.0)})
+    df.attrs["law"] = "linear"
+    return df
+
+
+def _exact_quantiles(record, q) -> np.ndarray:
+    """Quantiles of Sd(T(k)) for k ~ LogNormal(ln K0, SIG): Sd on 4000 stratified quantiles of k."""
+    from scipy import stats
+
+    kq = K0 * np.exp(SIG * stats.norm.ppf((np.arange(4000) + 0.5) / 4000))
+    sd = ground_motions.response_spectrum(record, 2 * np.pi * np.sqrt(100.0 / kq), ZETA).sd
+    return np.quantile(sd, q)
+
+
+@pytest.fixture(scope="module")
+def sdof_case():
+    return _sdof_building(), ground_motions.load("rinaldi"), _lognormal_stiffness_posterior(20_000, 7)
+
+
+def test_each_run_on_a_rigid_building_over_a_linear_isolator_peaks_at_the_spectral_displacement(sdof_case):
+    bld, rec, post = sdof_case
+    rs = propagate(post, bld, [rec], n_samples=40, seed=3, progress=False)
+    k = rs.draws["k"].to_numpy()
+    sd = ground_motions.response_spectrum(rec, 2 * np.pi * np.sqrt(100.0 / k), ZETA).sd
+    # Newmark (average acceleration, dt = 0.01 s) vs. the exact recurrence: period error ~ (w dt)^2/12
+    np.testing.assert_allclose(rs.table["iso_disp_peak_m"].to_numpy(), sd, rtol=2e-3)
+
+
+def _percentile_errors(case, sizes, seeds) -> dict[int, float]:
+    """RMS relative error of the 2.5/16/50/84/97.5 % percentiles vs. the exact ones, mean over seeds."""
+    bld, rec, post = case
+    q = [0.025, 0.16, 0.5, 0.84, 0.975]
+    exact = _exact_quantiles(rec, q)
+    err = {}
+    for n in sizes:
+        e = []
+        for seed in seeds:
+            rs = propagate(post, bld, [rec], n_samples=n, seed=seed, progress=False, chunk_size=200)
+            got = np.quantile(rs.table["iso_disp_peak_m"], q)
+            e.append(np.sqrt(np.mean((got / exact - 1.0) ** 2)))
+        err[n] = float(np.mean(e))
+    return err
+
+
+def test_demand_percentiles_converge_to_the_exact_ones_as_samples_grow(sdof_case):
+    """Percentile error (mean over 4 seeds) falls like a Monte Carlo error, ~ 1/sqrt(n)."""
+    err = _percentile_errors(sdof_case, (25, 400), range(4))
+    # Monte Carlo error ~ n^-1/2: 16x the samples -> about 4x smaller; at least 2x
+    assert err[400] < err[25] / 2.0, err
+    assert err[400] < 0.05, err
+
+
+@pytest.mark.slow
+def test_percentile_error_decays_at_the_monte_carlo_rate(sdof_case):
+    """Over n = 16 ... 1024 (12 seeds each) the log-log slope of the error is about -1/2."""
+    sizes = (16, 64, 256, 1024)
+    err = _percentile_errors(sdof_case, sizes, range(12))
+    slope = np.polyfit(np.log(sizes), np.log([err[n] for n in sizes]), 1)[0]
+    assert -0.8 < slope < -0.3, (slope, err)
