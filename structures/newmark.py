@@ -462,7 +462,7 @@ def _ground(record, dt) -> tuple[str, np.ndarray, float]:
     bad = np.flatnonzero(~np.isfinite(acc))
     if bad.size:
         i = int(bad[0])
-        raise ValueError(f"record {name!r}: accel[{i}] = {acc[i]!r} (t = {i * rdt:g} s) is not finite")
+        raise ValueError(f"record {name!r}: accel[{i}] = {float(acc[i])!r} (t = {i * rdt:g} s) is not finite")
     if dt is None or float(dt) == rdt:
         return name, np.ascontiguousarray(acc), rdt
     h = float(dt)
