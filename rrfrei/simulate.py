@@ -7,7 +7,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from rrfrei.laws import STATUS_MESSAGES, LawSpec, get
-from rrfrei.laws.kernel import run_history
+from rrfrei.laws.kernel import drive
 
 
 def as_history(values, name: str, *, min_len: int = 1) -> np.ndarray:
@@ -77,13 +77,14 @@ def simulate_force(
         use_time = True
     force = np.empty_like(u)
     tangent = np.empty_like(u)
-    status, idx = run_history(
-        spec.code, p, np.array(spec.initial_state), u, t, use_time, int(substeps), force, tangent
-    )
+    sc = np.array(spec.initial_state, dtype=float)
+    st = sc.copy()
+    status, idx = drive(spec.code, p, sc, st, u, t, use_time, int(substeps), force, tangent)
     if status != 0:
         raise ValueError(
             f"law {spec.name!r} failed at sample {idx} (disp = {u[idx]:.6g} m): "
-            f"{STATUS_MESSAGES.get(int(status), f'status {status}')}; parameters "
-            f"{spec.as_dict(p)}"
+            f"{STATUS_MESSAGES.get(int(status), f'status {status}')}; committed state "
+            f"{np.array2string(sc, precision=6)}, failed trial state "
+            f"{np.array2string(st, precision=6)}; parameters {spec.as_dict(p)}"
         )
     return (force, tangent) if return_tangent else force

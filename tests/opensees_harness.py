@@ -92,22 +92,58 @@ def _build(ops, law: str, params: dict, disp: np.ndarray) -> tuple[int, float]:
     return idx, sign
 
 
-def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int]:
+class _CaptureFd:
+    """Redirect a C-level file descriptor (OpenSees' opserr) into a temporary file."""
+
+    def __init__(self, fd: int = 2):
+        self.fd = fd
+
+    def __enter__(self):
+        self.tmp = tempfile.TemporaryFile(mode="w+b")
+        self.saved = os.dup(self.fd)
+        os.dup2(self.tmp.fileno(), self.fd)
+        return self
+
+    def size(self) -> int:
+        return os.fstat(self.tmp.fileno()).st_size
+
+    def text(self, start: int = 0) -> str:
+        self.tmp.seek(start)
+        return self.tmp.read().decode(errors="replace")
+
+    def __exit__(self, *exc):
+        os.dup2(self.saved, self.fd)
+        os.close(self.saved)
+        self.tmp.close()
+
+
+def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int, int]:
     """Basic shear force [kN] of the OpenSees element along ``disp`` [m].
 
-    Returns ``(force, n_ok)``: ``n_ok`` samples converged (``n_ok < len(disp)`` when OpenSees
-    failed at sample ``n_ok``; the remaining forces are NaN).
+    Returns ``(force, n_ok, first_local_failure)``: ``n_ok`` samples converged globally
+    (``n_ok < len(disp)`` when ``analyze`` failed at sample ``n_ok``; later forces are NaN), and
+    ``first_local_failure`` is the first sample at which the element's ``update()`` reported a
+    failed local Newton solve (its WARNING on opserr), or -1.  openseespy 3.7.1.2 does not stop
+    the analysis on such a failure: the next ``update()`` call of the same step continues the
+    local Newton from the stuck trial z.
     """
     disp = np.asarray(disp, dtype=float)
     idx, sign = _build(ops, law, params, disp)
     out = np.full(disp.size, np.nan)
-    for k in range(disp.size):
-        if ops.analyze(1) != 0:
-            ops.wipe()
-            return out, k
-        out[k] = sign * ops.eleResponse(1, "force")[idx]
-    ops.wipe()
-    return out, disp.size
+    first_fail = -1
+    n_ok = disp.size
+    with _CaptureFd(2) as cap:
+        for k in range(disp.size):
+            before = cap.size()
+            status = ops.analyze(1)
+            if first_fail < 0 and cap.size() > before and "update()" in cap.text(before):
+                first_fail = k
+            if status != 0:
+                n_ok = k
+                break
+            out[k] = sign * ops.eleResponse(1, "force")[idx]
+        ops.wipe()
+    return out, n_ok, first_fail
 
 
 def element_force_recorder(ops, law: str, params: dict, disp, path: str | None = None) -> np.ndarray:
@@ -122,7 +158,7 @@ def element_force_recorder(ops, law: str, params: dict, disp, path: str | None =
         fd, path = tempfile.mkstemp(suffix=".out")
         os.close(fd)
     try:
-        ops.recorder("Element", "-file", path, "-ele", 1, "force")
+        ops.recorder("Element", "-file", path, "-precision", 17, "-ele", 1, "force")
         status = ops.analyze(disp.size)
         ops.wipe()  # flushes and closes the recorder
         if status != 0:

@@ -38,8 +38,10 @@ State (float64[6])::
 
 import math
 
+import numpy as np
 from numba import njit
 
+from rrfrei.laws._util import commit, increment
 from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
 
 KERNEL_ID = 4
@@ -47,7 +49,7 @@ KERNEL_ID = 4
 DBL_EPSILON = 2.220446049250313e-16
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def step(p, sc, u, v, dt, st):
     """HDR shear force [kN], tangent [kN/m] and status (see the module docstring)."""
     a1 = p[0]
@@ -120,6 +122,31 @@ def step(p, sc, u, v, dt, st):
     k1 = df1_du + (km * poly * u) * (dks1_dds * ds_du) + (ks1 * poly * u) * (dkm_ddm * dm_du)
     k2 = n * dr_du + r * dn_du - mu * ddelta_du - delta * dmu_du
     return f1 + f2, k1 + k2, 0
+
+
+@njit(cache=True, error_model="numpy")
+def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
+    """Whole-history driver of this law (contract of :func:`rrfrei.laws.kernel.drive`)."""
+    u_prev = 0.0
+    t_prev = time[0] if use_time else 0.0
+    for i in range(disp.shape[0]):
+        du, v, dt = increment(i, disp, time, use_time, substeps, u_prev, t_prev)
+        f = 0.0
+        kt = 0.0
+        for j in range(substeps):
+            u = disp[i] if j == substeps - 1 else u_prev + du * (j + 1)
+            f, kt, status = step(p, sc, u, v, dt, st)
+            if status != 0:
+                return status, i
+            if not (np.isfinite(f) and np.isfinite(kt)):
+                return -3, i
+            commit(sc, st)
+        force[i] = f
+        tangent[i] = kt
+        u_prev = disp[i]
+        if use_time:
+            t_prev = time[i]
+    return 0, -1
 
 
 SPEC = register(

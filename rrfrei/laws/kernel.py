@@ -8,7 +8,8 @@ Newmark, likelihoods) call only this function, so every law and effect works eve
 import numpy as np
 from numba import njit
 
-from rrfrei.laws.dispatch import base_step
+from rrfrei.laws._util import commit, increment
+from rrfrei.laws.dispatch import base_drive, base_step
 from rrfrei.laws.effects import augmented_step
 
 
@@ -37,34 +38,36 @@ def run_history(code, p, state0, disp, time, use_time, substeps, force, tangent)
     -------
     (status, index) : 0 and -1 on success, else the failing status and sample index.
     """
-    n = disp.shape[0]
     sc = state0.copy()
     st = state0.copy()
+    return drive(code, p, sc, st, disp, time, use_time, substeps, force, tangent)
+
+
+@njit(cache=True)
+def drive(code, p, sc, st, disp, time, use_time, substeps, force, tangent):
+    """:func:`run_history` on caller-owned state arrays.
+
+    ``sc`` (committed) and ``st`` (trial) start as the initial state and are updated in place, so
+    after a failure at sample ``index`` they hold the last committed and the failed trial state.
+    A base law runs its own module's ``drive`` (same loop, its step inlined); an augmented law
+    goes through :func:`step` at every sub-step.
+    """
+    if code[3] == 0:
+        return base_drive(code[0], p, sc, st, disp, time, use_time, substeps, force, tangent)
     u_prev = 0.0
     t_prev = time[0] if use_time else 0.0
-    for i in range(n):
-        du = (disp[i] - u_prev) / substeps
-        if use_time:
-            dt = (time[i] - t_prev) / substeps
-            if i == 0 or dt <= 0.0:
-                v = 0.0
-                dt_eff = 1.0 if dt <= 0.0 else dt
-            else:
-                v = du / dt
-                dt_eff = dt
-        else:
-            v = 0.0
-            dt_eff = 1.0
+    for i in range(disp.shape[0]):
+        du, v, dt = increment(i, disp, time, use_time, substeps, u_prev, t_prev)
         f = 0.0
         kt = 0.0
         for j in range(substeps):
             u = disp[i] if j == substeps - 1 else u_prev + du * (j + 1)
-            f, kt, status = step(code, p, sc, u, v, dt_eff, st)
+            f, kt, status = step(code, p, sc, u, v, dt, st)
             if status != 0:
                 return status, i
             if not (np.isfinite(f) and np.isfinite(kt)):
                 return -3, i
-            sc[:] = st
+            commit(sc, st)
         force[i] = f
         tangent[i] = kt
         u_prev = disp[i]

@@ -19,13 +19,13 @@ elastic branch ("sticky" trial variable).
 import numpy as np
 from numba import njit
 
-from rrfrei.laws._util import powabs, sgn
+from rrfrei.laws._util import commit, increment, powabs, sgn
 from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
 
 KERNEL_ID = 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def step(p, sc, u, v, dt, st):
     k_init = p[0]
     qd = p[1]
@@ -45,6 +45,31 @@ def step(p, sc, u, v, dt, st):
     s = sgn(q_tr)
     st[0] = sc[0] + (y / k0) * s
     return qd * s + k2 * u + nl_f, k2 + nl_k, 0
+
+
+@njit(cache=True, error_model="numpy")
+def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
+    """Whole-history driver of this law (contract of :func:`rrfrei.laws.kernel.drive`)."""
+    u_prev = 0.0
+    t_prev = time[0] if use_time else 0.0
+    for i in range(disp.shape[0]):
+        du, v, dt = increment(i, disp, time, use_time, substeps, u_prev, t_prev)
+        f = 0.0
+        kt = 0.0
+        for j in range(substeps):
+            u = disp[i] if j == substeps - 1 else u_prev + du * (j + 1)
+            f, kt, status = step(p, sc, u, v, dt, st)
+            if status != 0:
+                return status, i
+            if not (np.isfinite(f) and np.isfinite(kt)):
+                return -3, i
+            commit(sc, st)
+        force[i] = f
+        tangent[i] = kt
+        u_prev = disp[i]
+        if use_time:
+            t_prev = time[i]
+    return 0, -1
 
 
 def _check(p: np.ndarray) -> None:
