@@ -81,8 +81,7 @@ class DemoSettings:
     laws: tuple[str, ...] = LAWS
     walkers: int = 32
     steps: int = 1500
-    gap_walkers: int = 16
-    gap_steps: int = 300
+    gap_draws: int = 200
     n_samples: int = 100
     records: tuple[str, ...] | None = None  # None: every bundled record
     scales: tuple[float, ...] = (0.5, 1.0, 1.5)
@@ -102,8 +101,7 @@ class DemoSettings:
             seed=seed,
             walkers=24,
             steps=200,
-            gap_walkers=12,
-            gap_steps=60,
+            gap_draws=60,
             n_samples=16,
             records=("elcentro", "kocaeli"),
             scales=(1.0,),
@@ -409,8 +407,89 @@ def step_validate(ctx: DemoContext, sec: Section) -> None:
 # step 5: gap
 # ---------------------------------------------------------------------------------------------
 def step_gap(ctx: DemoContext, sec: Section) -> None:
-    _api("rrfrei.gap", "diagnose_gap")
-    raise Placeholder("the gap diagnosis is not wired into the demo yet")
+    diagnose_gap = _api("rrfrei.gap", "diagnose_gap")
+    gap_figures = _api("rrfrei.gap.report", "figures")
+    tests = ctx.need("tests", "tests")
+    best = ctx.best_law
+    if best is None:
+        raise RuntimeError("this step needs the best law from the 'comparison' step, which did not finish")
+    s = ctx.settings
+    holdout = [tests[n] for n in TESTS[1:]]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rep = diagnose_gap(tests["protocol1"], best, holdout=holdout, draws=s.gap_draws, seed=s.seed)
+    ctx.results["gap"] = rep
+    rows = []
+    for e in rep.ranking:
+        rows.append({"effect": e.effect, "law": e.law, "screen": e.screen, "delta_elpd": e.delta_elpd,
+                     "se": e.se, "delta_holdout": e.delta_holdout, "se_holdout": e.se_holdout,
+                     "gap_calibration": e.calibration.gap, "systematic_calibration": e.calibration.systematic,
+                     "gap_holdout": e.holdout.gap if e.holdout is not None else float("nan"),
+                     "shrink_calibration": e.shrink_calibration, "shrink_holdout": e.shrink_holdout,
+                     "significant": bool(e.significant), "note": e.note})
+    ranking = _na_as_text(pd.DataFrame(rows), ("screen", "delta_holdout", "se_holdout", "gap_holdout",
+                                                "shrink_calibration", "shrink_holdout"))
+    metrics = []
+    for label, (m_cal, m_hold) in (("baseline " + best, rep.baseline),
+                                   ("final " + "+".join([best, *rep.combination]), rep.final)):
+        for on, m in (("calibration (protocol1)", m_cal), ("held out (protocols 2-4)", m_hold)):
+            if m is not None:
+                metrics.append({"model": label, "on": on, **m.as_dict()})
+    metrics_df = _na_as_text(pd.DataFrame(metrics), ("energy_error",))
+    where = _na_as_text(rep.where.reset_index(drop=True), ("energy_error", "coverage", "bias"))
+    sec.add_table("gap", metrics_df, "Gap = NRMSE, its systematic part sqrt(max(MSE - sigma^2, 0)) / "
+                  "RMS(measured), energy-per-cycle error and band coverage, before and after the effects.")
+    sec.add_table("ranking", ranking, "Each catalogue effect added to the baseline: residual screen, "
+                  "leave-one-cycle-out elpd gain (se), held-out score gain, gaps and shrink of the "
+                  "systematic gap.")
+    sec.add_table("where", where, "Where the baseline misses: segments of protocol 1 ranked by excess "
+                  "error over the noise.")
+    for name, fig in gap_figures(rep).items():
+        sec.add_figure(name.removesuffix(".png"), fig)
+    b_cal, b_hold = rep.baseline
+    f_cal, f_hold = rep.final
+    top = rep.where.iloc[0] if len(rep.where) else None
+    reading = f"Baseline {best} on protocol 1 ({SYNTHETIC}): gap (NRMSE) {_pct(b_cal.gap)}, of which the " \
+              f"systematic part is {_pct(b_cal.systematic)}"
+    if b_hold is not None:
+        reading += f"; on the held-out protocols 2-4 the gap is {_pct(b_hold.gap)}"
+    reading += "."
+    if top is not None:
+        reading += (f" The residuals concentrate in the {top['axis']} segment '{top['segment']}' "
+                    f"({_pct(top['error_share'])} of the squared error, {fmt(top['rms_over_noise'], 3)} "
+                    f"times the noise level).")
+    if rep.diagnosis == "none":
+        reading += (" No catalogue effect improves the expected predictive accuracy significantly: the "
+                    "diagnosis is 'none'.")
+    else:
+        winner = next(e for e in rep.ranking if e.effect == rep.diagnosis)
+        reading += (f" The diagnosis is '{rep.diagnosis}': adding it gains {fmt(winner.delta_elpd, 3)} "
+                    f"(se {fmt(winner.se, 3)}) in leave-one-cycle-out elpd")
+        if math.isfinite(winner.shrink_holdout):
+            reading += f" and shrinks the held-out systematic gap by {_pct(winner.shrink_holdout)}"
+        reading += "."
+        if len(rep.combination) > 1:
+            reading += f" The greedy combination is {' + '.join(rep.combination)}."
+        reading += f" With it the calibration gap goes from {_pct(b_cal.gap)} to {_pct(f_cal.gap)}"
+        if b_hold is not None and f_hold is not None:
+            reading += f" and the held-out gap from {_pct(b_hold.gap)} to {_pct(f_hold.gap)}"
+        reading += "."
+    for note in rep.notes:
+        sec.notes.append(note)
+    sec.reading = reading
+
+
+def _na_as_text(df: pd.DataFrame, columns: Sequence[str]) -> pd.DataFrame:
+    """Write 'n/a' (not applicable) instead of NaN in the given columns, leaving them as text.
+
+    Used only where a NaN means 'not defined' (e.g. the energy error of a segment without a full
+    cycle, a held-out score without held-out tests); every other column must hold finite numbers.
+    """
+    out = df.copy()
+    for c in columns:
+        if c in out.columns and out[c].isna().any():
+            out[c] = [fmt(v) for v in out[c]]
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -621,7 +700,7 @@ class DemoResult:
 def run_step(step: Step, ctx: DemoContext) -> Section:
     """Run one step into a fresh section; errors and placeholders are caught into the section."""
     sec = Section(step.key, step.title)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         step.func(ctx, sec)
         if not sec.reading:
@@ -634,6 +713,7 @@ def run_step(step: Step, ctx: DemoContext) -> Section:
         where = "".join(traceback.format_list(tb))
         sec.error = f"{type(exc).__name__}: {exc}\n\nWhere:\n{where}"
     sec.seconds = time.perf_counter() - t0
+    sec.cpu_seconds = time.process_time() - c0
     return sec
 
 

@@ -99,6 +99,7 @@ class Section:
     error: str | None = None
     placeholder: bool = False
     seconds: float | None = None
+    cpu_seconds: float | None = None
     notes: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -242,7 +243,8 @@ class Report:
         e = html.escape
         out = [f'<section id="{s.key}"><h2>{e(s.title)}</h2>']
         if s.seconds is not None:
-            out.append(f'<p class="meta">Step time: {s.seconds:.1f} s</p>')
+            cpu = f" (CPU {s.cpu_seconds:.1f} s)" if s.cpu_seconds is not None else ""
+            out.append(f'<p class="meta">Step time: {s.seconds:.1f} s{cpu}</p>')
         if s.placeholder:
             out.append(
                 '<div class="placeholder"><strong>Placeholder</strong>: this step is not computed '
@@ -284,6 +286,7 @@ class Report:
                     "status": s.status,
                     "error": s.error,
                     "seconds": s.seconds,
+                    "cpu_seconds": s.cpu_seconds,
                     "reading": s.reading,
                     "tables": [
                         {
