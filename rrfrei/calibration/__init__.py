@@ -156,6 +156,14 @@ def calibrate(
             "which are evaluated quasi-statically (velocity 0); rate effects cannot be judged",
             UserWarning, stacklevel=2,
         )
+    nw = walkers if walkers is not None else max(32, 4 * problem.ndim)
+    if not isinstance(nw, (int, np.integer)) or nw < 2 * problem.ndim:
+        raise ValueError(
+            f"walkers = {walkers!r} is too few for {problem.ndim} sampled quantities; "
+            f"use >= {2 * problem.ndim}"
+        )
+    if steps is not None and (not isinstance(steps, (int, np.integer)) or steps < 2):
+        raise ValueError(f"steps must be an integer >= 2 or None (run to convergence), got {steps!r}")
     stored = load_optimum(checkpoint) if checkpoint is not None else None
     if stored is not None and stored.get("names") == list(problem.names) and stored.get("law") == spec.name:
         theta0 = np.asarray(stored["theta"], dtype=float)

@@ -164,8 +164,9 @@ class Calibration:
 
         Arguments follow the element's documented order, which is the law's parameter order
         (``rrfrei.laws``: parameters are declared in OpenSees order).  Axial and moment
-        behaviour are materials the user supplies (tags 1 and 2 here); the element is oriented
-        along global y (vertical) so the shear direction is global x.
+        behaviour are materials the user supplies (tags 1 and 2 here).  ``-orient 0 1 0 1 0 0``
+        puts the element's local x (axial) along global Y (vertical) and its local y (shear) along
+        global +X.
         """
         if not self.spec.opensees_element:
             raise ValueError(f"law {self.law!r} has no OpenSees element")
@@ -174,7 +175,7 @@ class Calibration:
                          or vals[n] != self.spec.param(n).default)
         return (
             f"ops.element('{self.spec.opensees_element}', {tag}, {i_node}, {j_node}, {args}, "
-            f"'-P', 1, '-Mz', 2, '-orient', 0.0, 1.0, 0.0, -1.0, 0.0, 0.0)  "
+            f"'-P', 1, '-Mz', 2, '-orient', 0.0, 1.0, 0.0, 1.0, 0.0, 0.0)  "
             f"# {self.law} MAP, units kN, m, s"
         )
 
