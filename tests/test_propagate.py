@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 import signal
 import subprocess
@@ -157,12 +158,12 @@ def test_rerun_with_the_same_store_skips_every_finished_chunk(small_case, tmp_pa
     post, bld, recs = small_case
     kw = dict(n_samples=6, chunk_size=3, progress=False, store=tmp_path / "s")
     first = propagate(post, bld, recs, **kw)
-    import structures.propagate as P
+    P = importlib.import_module("structures.propagate")
 
     def boom(*a, **k):
         raise AssertionError("a finished chunk was run again")
 
-    monkeypatch.setattr(P, "run_chunk", boom)
+    monkeypatch.setattr(P, "run_chunk", boom)  # the module (structures.propagate is the function)
     again = propagate(post, bld, recs, **kw)
     pd.testing.assert_frame_equal(first.table, again.table)
     with pytest.raises(ValueError, match="different inputs"):
@@ -173,7 +174,8 @@ KILL_SCRIPT = textwrap.dedent("""
     import sys, time
     import numpy as np
     sys.path.insert(0, {tests!r})
-    import structures.propagate as P
+    import importlib
+    P = importlib.import_module("structures.propagate")
     from test_propagate import draws_around, short
     import structures
     bld = structures.load_building("five_story")
