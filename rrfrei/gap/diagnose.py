@@ -145,6 +145,8 @@ def _loco(ll: np.ndarray, groups: np.ndarray) -> np.ndarray:
 
     G = int(groups.max()) + 1
     sums = np.stack([ll[:, groups == g].sum(axis=1) for g in range(G)], axis=0)  # (G, S)
+    if sums.shape[1] < 20:  # too few valid draws for importance sampling: plug-in estimate
+        return sums.mean(axis=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         lw, _ = psislw(-sums.copy())

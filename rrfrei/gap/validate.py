@@ -90,6 +90,7 @@ def _slip(u, t, p, fs, ks):
     up_c = 0.0  # slider plastic displacement
     for i in range(n):
         def gap(us, ui=u[i], upc=up_c):
+            st[:] = sc  # the plasticity kernel keeps a sticky trial u_p: start every trial fresh
             fb, _, _ = plasticity.step(p, sc, ui - us, 0.0, 1.0, st)
             fsl = min(max(ks * (us - upc), -fs), fs)
             return fb - fsl
@@ -109,6 +110,7 @@ def _slip(u, t, p, fs, ks):
             else:
                 hi = mid
         us = 0.5 * (lo + hi)
+        st[:] = sc
         fb, _, _ = plasticity.step(p, sc, u[i] - us, 0.0, 1.0, st)
         sc[:] = st
         q = ks * (us - up_c)

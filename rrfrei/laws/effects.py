@@ -226,6 +226,17 @@ def _inner(code, p, sc, u, v, dt, st):
 
 
 @njit(cache=True)
+def _inner_fresh(code, p, sc, x, v, dt, st, so):
+    """``_inner`` from the committed state: the slider search evaluates the inner law at several
+    trial points, and a base law that keeps a "sticky" trial variable (OpenSees plasticity keeps
+    the trial u_p in the elastic branch) must not carry one trial into the next."""
+    us = st[so]
+    st[:] = sc
+    st[so] = us
+    return _inner(code, p, sc, x, v, dt, st)
+
+
+@njit(cache=True)
 def augmented_step(code, p, sc, u, v, dt, st):
     """Step of an augmented law: (force [kN], tangent [kN/m], status); contract of the registry."""
     ne = code[3]
@@ -269,14 +280,14 @@ def augmented_step(code, p, sc, u, v, dt, st):
         if not np.isfinite(xt):
             break
         xn = xt
-        fn, kn, status = _inner(code, p, sc, xn, v, dt, st)
+        fn, kn, status = _inner_fresh(code, p, sc, xn, v, dt, st, so)
         if status != 0:
             return fn, kn, status
     if not found:
         # bracket then bisect
         lo = hi - s * step
         for _ in range(80):
-            fl, kl, status = _inner(code, p, sc, lo, v, dt, st)
+            fl, kl, status = _inner_fresh(code, p, sc, lo, v, dt, st, so)
             if status != 0:
                 return fl, kl, status
             if s * (fl - target) <= 0.0:
@@ -287,7 +298,7 @@ def augmented_step(code, p, sc, u, v, dt, st):
             return fl, kl, -2
         for _ in range(200):
             xn = 0.5 * (lo + hi)
-            fn, kn, status = _inner(code, p, sc, xn, v, dt, st)
+            fn, kn, status = _inner_fresh(code, p, sc, xn, v, dt, st, so)
             if status != 0:
                 return fn, kn, status
             if s * (fn - target) > 0.0:
