@@ -20,7 +20,9 @@ fastest path) in benchmarks.  Law parameters are the rrfrei ones (kN, m).
 
 from __future__ import annotations
 
+import io
 import os
+import sys
 import tempfile
 
 import numpy as np
@@ -92,28 +94,27 @@ def _build(ops, law: str, params: dict, disp: np.ndarray) -> tuple[int, float]:
     return idx, sign
 
 
-class _CaptureFd:
-    """Redirect a C-level file descriptor (OpenSees' opserr) into a temporary file."""
-
-    def __init__(self, fd: int = 2):
-        self.fd = fd
+class _CaptureStderr:
+    """Capture OpenSees' opserr: openseespy writes it through ``sys.stderr`` (a Python object,
+    replaced by pytest's capture), other builds to file descriptor 2; both are redirected."""
 
     def __enter__(self):
         self.tmp = tempfile.TemporaryFile(mode="w+b")
-        self.saved = os.dup(self.fd)
-        os.dup2(self.tmp.fileno(), self.fd)
+        self.saved_fd = os.dup(2)
+        os.dup2(self.tmp.fileno(), 2)
+        self.buf = io.StringIO()
+        self.saved_sys = sys.stderr
+        sys.stderr = self.buf
         return self
 
-    def size(self) -> int:
-        return os.fstat(self.tmp.fileno()).st_size
-
-    def text(self, start: int = 0) -> str:
-        self.tmp.seek(start)
-        return self.tmp.read().decode(errors="replace")
+    def text(self) -> str:
+        self.tmp.seek(0)
+        return self.buf.getvalue() + self.tmp.read().decode(errors="replace")
 
     def __exit__(self, *exc):
-        os.dup2(self.saved, self.fd)
-        os.close(self.saved)
+        sys.stderr = self.saved_sys
+        os.dup2(self.saved_fd, 2)
+        os.close(self.saved_fd)
         self.tmp.close()
 
 
@@ -132,12 +133,14 @@ def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int, i
     out = np.full(disp.size, np.nan)
     first_fail = -1
     n_ok = disp.size
-    with _CaptureFd(2) as cap:
+    with _CaptureStderr() as cap:
+        seen = 0
         for k in range(disp.size):
-            before = cap.size()
             status = ops.analyze(1)
-            if first_fail < 0 and cap.size() > before and "update()" in cap.text(before):
+            text = cap.text()
+            if first_fail < 0 and len(text) > seen and "update()" in text[seen:]:
                 first_fail = k
+            seen = len(text)
             if status != 0:
                 n_ok = k
                 break

@@ -37,6 +37,8 @@ instead of a ``pow`` call; |z|^eta = |z| |z|^(eta-1).  The iterates agree with a
 about 1e-16.
 """
 
+from dataclasses import replace
+
 import numpy as np
 from numba import njit
 
@@ -154,7 +156,8 @@ SPEC = register(
     LawSpec(
         name="bouc_wen",
         kernel_id=KERNEL_ID,
-        params=_PLASTICITY_PARAMS
+        params=(_PLASTICITY_PARAMS[0], replace(_PLASTICITY_PARAMS[1], lower=1e-9))
+        + _PLASTICITY_PARAMS[2:]
         + (
             ParamSpec("eta", "-", 0.1, 10.0, "Bouc-Wen exponent", Prior("uniform", 0.5, 5.0)),
             ParamSpec("beta", "-", 0.0, 5.0, "coefficient of the sign-dependent term",
