@@ -14,12 +14,16 @@ Isolator implementation (:class:`IsolatorModel`)
 ------------------------------------------------
 Fit: the optimum of the law parameters under iid Gaussian residuals (noise profiled out, flat
 priors inside the physical bounds) by bounded least squares (``scipy.optimize.least_squares``,
-trust-region reflective) from several starts: the baseline starts from the CMA-ES optimum of
-:func:`rrfrei.calibration.sampler.find_map` (the calibration code's global search); an augmented
+trust-region reflective) from several starts: the baseline starts from a short CMA-ES search of
+:func:`rrfrei.calibration.sampler.find_map` (the calibration code's global search, ``GLOBAL_EVALS``
+evaluations per parameter); an augmented
 law starts from the baseline optimum with each effect at the catalogue's starting values.
-Posterior: the Laplace approximation ``N(theta*, sigma^2 (J^T J)^+)`` (pseudo-inverse: unidentified
-directions get no spread) with ``sigma^2 ~ RSS / chi2_{n-k}``, ``draws`` samples clipped to the
-bounds.  This is the "short posterior" of the diagnosis; the full emcee posterior of
+Posterior: ``draws`` samples of the Laplace approximation ``N(theta*, (J^T J / s^2 + I)^-1)`` in
+coordinates scaled by each parameter's typical size (the identity is a weak ridge: one scale of
+prior spread in directions the data do not fix), clipped to the bounds, then importance-resampled
+to the posterior under flat priors with the noise integrated out, ``p(theta | y) ~ RSS^(-n/2)``
+(systematic resampling), and ``sigma^2 = RSS(theta) / chi2_n`` per draw.
+This is the "short posterior" of the diagnosis; the full emcee posterior of
 :func:`rrfrei.calibrate` is the reference for reporting a chosen law.
 
 The *noise level* (for the systematic part of the gap) is the white part of the residuals,
@@ -46,6 +50,8 @@ __all__ = ["GapModel", "FitResult", "Prediction", "IsolatorModel", "IsolatorFit"
            "test_scales"]
 
 LEVEL = 0.95
+GLOBAL_EVALS = 300
+"""CMA-ES evaluations per free parameter of the baseline's global search (then least squares)."""
 
 
 @dataclass(frozen=True)
@@ -255,7 +261,8 @@ class IsolatorModel(GapModel):
         base = get(self.spec.name.split("+")[0])
         bfix = {k: v for k, v in fixed.items() if k in base.param_names}
         prob = setup_problem(data, base, fixed=bfix)
-        theta, _ = find_map(prob, seed)
+        # a coarse global search is enough: least squares polishes it (GLOBAL_EVALS per parameter)
+        theta, _ = find_map(prob, seed, max_evals=GLOBAL_EVALS * max(len(prob.free), 1))
         out = dict(bfix)
         out.update({n: float(x) for n, x in zip(prob.free, theta[: len(prob.free)])})
         return out
@@ -350,25 +357,41 @@ class IsolatorModel(GapModel):
         n, k = y.size, len(free)
         rss = float(r @ r)
         sigma = math.sqrt(rss / n)
-        # Laplace draws in the scaled coordinates
+        # Laplace proposal in the scaled coordinates, with a weak ridge (prior sd of one parameter
+        # scale) so unidentified directions do not spread without limit
         J = best.jac
-        cov = np.linalg.pinv(J.T @ J, rcond=1e-10) * (rss / max(n - k, 1))
+        s2 = rss / max(n - k, 1)
+        cov = np.linalg.inv(J.T @ J / s2 + np.eye(k)) if k else np.zeros((0, 0))
         # common random numbers: parameter j of the spec always gets the same normal column, so
-        # nested laws (base vs base+effect) are compared without Monte Carlo noise
+        # nested laws (base vs base+effect) are compared with little Monte Carlo noise
         S = self.draws
         Zn = np.column_stack([np.random.default_rng([seed, int(j)]).normal(size=S) for j in fi]) \
             if k else np.zeros((S, 0))
         try:
-            L = np.linalg.cholesky(cov + 1e-15 * np.eye(k) * max(np.trace(cov), 1e-30))
+            L = np.linalg.cholesky(cov) if k else np.zeros((0, 0))
         except np.linalg.LinAlgError:
             w, V = np.linalg.eigh(cov)
             L = V * np.sqrt(np.clip(w, 0, None))
-        X = best.x[None, :] + Zn @ L.T
-        X = np.clip(X, lb, ub)
+        X = np.clip(best.x[None, :] + Zn @ L.T, lb, ub)
+        X[0] = best.x
+        # importance resampling to the posterior (flat prior on theta and log sigma, sigma
+        # integrated out: p(theta | y) ~ RSS(theta)^(-n/2)), systematic resampling
+        logw = np.full(S, -np.inf)
+        for i in range(S):
+            ri = resid(X[i])
+            if ri[0] != big or np.any(ri != big):
+                logw[i] = -0.5 * n * math.log(float(ri @ ri)) + 0.5 * float(Zn[i] @ Zn[i])
+        logw[0] = max(logw[0], -0.5 * n * math.log(rss))
+        w = np.exp(logw - logw.max())
+        w /= w.sum()
+        u0 = np.random.default_rng([seed, 998]).uniform()
+        pick = np.minimum(np.searchsorted(np.cumsum(w), (u0 + np.arange(S)) / S), S - 1)
+        X = X[pick]
         P = np.repeat(p_opt[None, :], S, axis=0)
         P[:, fi] = X * s_vec
-        P[0] = p_opt
-        sig = np.sqrt(rss / np.random.default_rng([seed, 999]).chisquare(max(n - k, 1), size=S))
+        rss_s = np.array([float(q @ q) for q in (resid(x) for x in X)])
+        sig = np.sqrt(rss_s / np.random.default_rng([seed, 999]).chisquare(n, size=S))
+        self.last_ess = float(1.0 / np.sum(w**2))
         return IsolatorFit(spec=spec, p_opt=p_opt, P=P, sig=sig, sigma=sigma, noise=white_noise(r),
                            free=free, seed=seed)
 

@@ -70,9 +70,8 @@ def cycle_levels(disp: np.ndarray, *, tol: float = 0.10) -> Segments:
             k = len(amps) - 1
         cyc[s: e + 1] = c
         lev[s: e + 1] = k
-        if k not in seen:
-            first[s: e + 1] = True
-            seen.add(k)
+        first[s: e + 1] = k not in seen
+        seen.add(k)
     order = np.argsort(amps) if amps else np.zeros(0, dtype=int)
     rank = np.empty_like(order)
     rank[order] = np.arange(order.size)

@@ -1,0 +1,167 @@
+"""Gap diagnosis: definitions, segmentation, screens, the engine's rules, the reduced validation, CLI."""
+
+import json
+
+import numpy as np
+import pytest
+
+from rrfrei import simulate_force
+from rrfrei.cli import main
+from rrfrei.gap import diagnose_gap
+from rrfrei.gap.catalogue import ScreenContext, screen_all
+from rrfrei.gap.diagnose import _monotone_amplitude
+from rrfrei.gap.model import white_noise
+from rrfrei.gap.residuals import cycle_levels, gap, segment_table, systematic_gap
+from rrfrei.gap.validate import CASES, FIXED, make_tests, validate
+from rrfrei.io import ShearTest
+from rrfrei.protocols import protocol
+
+PL = {"k_init": 120.0, "qd": 0.6, "alpha1": 0.2, "alpha2": 0.0, "mu": 2.0}
+
+
+def test_gap_is_nrmse_and_its_systematic_part_removes_the_noise_variance():
+    y = np.array([1.0, -1.0, 1.0, -1.0])
+    f = y + np.array([0.2, -0.2, 0.2, -0.2])
+    assert gap(y, f) == pytest.approx(0.2)
+    assert systematic_gap(y, f, 0.0) == pytest.approx(0.2)
+    assert systematic_gap(y, f, 0.12) == pytest.approx(np.sqrt(0.04 - 0.0144))
+    assert systematic_gap(y, f, 0.3) == 0.0
+
+
+def test_white_noise_level_ignores_a_smooth_systematic_misfit():
+    rng = np.random.default_rng(0)
+    t = np.linspace(0, 100, 4000)
+    r = 0.5 * np.sin(2 * np.pi * t / 10) + rng.normal(0, 0.05, t.size)
+    assert white_noise(r) == pytest.approx(0.05, rel=0.1)
+
+
+def test_protocol1_has_four_amplitude_levels_of_three_cycles_each():
+    t, u = protocol(1)
+    seg = cycle_levels(u)
+    assert seg.level_amp == pytest.approx([0.005, 0.01, 0.02, 0.03], rel=0.01)
+    for lev in range(4):
+        cycles = set(seg.cycle[seg.level == lev])
+        assert len(cycles) == 3
+        first = set(seg.cycle[(seg.level == lev) & seg.first])
+        assert first == {min(cycles)}
+    assert _monotone_amplitude(ShearTest("p1", t, u, np.sin(u)))
+    t2, u2 = protocol(2)
+    assert not _monotone_amplitude(ShearTest("p2", t2, u2, np.sin(u2)))
+
+
+def test_segment_shares_sum_to_one_on_every_axis_and_name_the_misfit_segment():
+    t, u = protocol(1)
+    f = simulate_force("plasticity", PL, u, time=t)
+    rng = np.random.default_rng(1)
+    y = f + rng.normal(0, 0.01, f.size) + np.where(u > 0, 0.1 * f, 0.0)  # misfit only for u > 0
+    test = ShearTest("t", t, u, y)
+    table = segment_table(test, f, f - 0.02, f + 0.02, 0.01)
+    for axis, grp in table.groupby("axis"):
+        assert grp.error_share.sum() == pytest.approx(1.0), axis
+    top = table.iloc[0]
+    assert (top.axis, top.segment) in {("sign", "u >= 0")} or top.excess > 10
+    sign = table[table.axis == "sign"].set_index("segment")
+    assert sign.loc["u >= 0", "error_share"] > 0.9
+    assert sign.loc["u < 0", "rms_over_noise"] == pytest.approx(1.0, rel=0.15)
+
+
+def _ctx(y, f, t, u, has_time=True):
+    from rrfrei.energy import dissipated_energy
+    from rrfrei.gap.model import velocity
+
+    test = ShearTest("t", t, u, y, has_time=has_time)
+    return ScreenContext(disp=u, vel=velocity(test), force_pred=f, resid=y - f,
+                         energy=dissipated_energy(u, y), first_cycle=cycle_levels(u).first,
+                         has_time=has_time)
+
+
+@pytest.mark.parametrize("effect,values", [("rate", {"rate_c": 10.0}), ("asymmetry", {"asym": 0.15}),
+                                           ("rollover", {"roll_k": -20.0, "roll_onset": 0.012})])
+def test_the_signature_screen_of_an_effect_ranks_it_first_on_its_own_residuals(effect, values):
+    t, u = protocol(1)
+    f = simulate_force("plasticity", PL, u, time=t)
+    y = simulate_force(f"plasticity+{effect}", {**PL, **values}, u, time=t)
+    scores = screen_all(_ctx(y, f, t, u))
+    assert max(scores, key=lambda k: scores[k] if np.isfinite(scores[k]) else -1) == effect
+
+
+def test_rate_cannot_be_judged_without_a_time_column():
+    t, u = protocol(1)
+    tests = make_tests("control", 0, reduced=True)
+    cal = ShearTest("no-time", np.arange(len(tests[0])), tests[0].disp, tests[0].force, has_time=False)
+    rep = diagnose_gap(cal, "plasticity", fixed=FIXED, effects=["rate", "asymmetry"], draws=50)
+    assert [s.effect for s in rep.ranking] == ["asymmetry"]
+    assert any("rate effects cannot be judged" in n for n in rep.notes)
+    assert rep.as_dict()["gap_before"]["holdout"] is None
+
+
+def test_reduced_validation_names_every_withheld_effect_and_no_effect_on_the_control():
+    """One test per catalogue effect plus a control (10 Hz, 100 draws, fixed seed 0)."""
+    res = validate([0], reduced=True)
+    wrong = res.cases[res.cases.case.replace("control", "none") != res.cases.diagnosed]
+    assert wrong.empty, wrong[["case", "diagnosed"]].to_string()
+    named = res.cases[res.cases.case != "control"]
+    assert (named.shrink_holdout >= 0.5).all(), named[["case", "shrink_holdout"]].to_string()
+    assert res.confusion.shape == (len(CASES), len(CASES))
+    assert res.false_alarms == 0 and res.accuracy == 1.0
+
+
+@pytest.mark.slow
+def test_gap_validate_five_seeds_meets_the_accuracy_false_alarm_and_shrink_targets():
+    res = validate(5)
+    assert res.accuracy >= 0.9
+    assert res.false_alarms <= 1
+    named = res.cases[(res.cases.case == res.cases.diagnosed) & (res.cases.case != "control")]
+    assert (named.shrink_holdout >= 0.5).all(), named[["case", "seed", "shrink_holdout"]].to_string()
+
+
+def _write(test: ShearTest, path):
+    path.write_text("time_s,disp_m,force_kN\n" + "\n".join(
+        f"{a:.6f},{b:.8f},{c:.8f}" for a, b, c in zip(test.time, test.disp, test.force)))
+    return path
+
+
+def test_cli_gap_prints_the_json_summary_and_writes_the_report(tmp_path, capsys):
+    tests = make_tests("asymmetry", 0, reduced=True)
+    p1, p2 = _write(tests[0], tmp_path / "p1.csv"), _write(tests[1], tmp_path / "p2.csv")
+    code = main(["gap", str(p1), "--law", "plasticity", "--holdout", str(p2), "--effects", "asymmetry",
+                 "rate", "--out", str(tmp_path / "out"), "--json"])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) >= {"law", "diagnosis", "combination", "where", "ranking", "gap_before", "gap_after"}
+    assert out["diagnosis"] == "asymmetry" and out["combination"][0] == "asymmetry"
+    assert set(out["where"][0]) == {"axis", "segment", "error_share", "coverage"}
+    assert set(out["ranking"][0]) == {"effect", "delta_elpd", "se", "shrink_calibration", "shrink_holdout"}
+    assert out["gap_after"]["holdout"] < out["gap_before"]["holdout"]
+    for name in ("report.md", "gap_map.png", "loops.png", "ranking.png"):
+        assert (tmp_path / "out" / name).stat().st_size > 0
+
+
+@pytest.mark.parametrize("argv,msg", [
+    (["gap", "missing.csv", "--law", "plasticity"], "missing.csv"),
+    (["gap", "protocol1", "--law", "nolaw"], "unknown law 'nolaw'"),
+    (["gap", "protocol1", "--law", "plasticity", "--effects", "creep"], "unknown effect 'creep'"),
+    (["gap-validate", "--seeds", "0"], "positive integer"),
+])
+def test_cli_user_errors_are_one_line_on_stderr_with_exit_2(argv, msg, capsys):
+    with pytest.raises(SystemExit) if argv[0] == "gap-validate" else _nullctx() as exc:
+        code = main(argv)
+    code = exc.value.code if argv[0] == "gap-validate" else code
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert msg in err and "\n" not in err
+
+
+class _nullctx:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *a):
+        return False
+
+
+def test_cli_help_shows_an_example(capsys):
+    for cmd in ("gap", "gap-validate"):
+        with pytest.raises(SystemExit):
+            main([cmd, "--help"])
+        assert "Example:" in capsys.readouterr().out
