@@ -34,298 +34,284 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from rrfrei.laws import bouc_wen, elastomeric_x, hdr, linear, plasticity
 from rrfrei.laws.kernel import step as law_step
 
 # rows of the work array W (each of length ndof)
 _U, _V, _A, _UT, _VT, _AT, _DU, _R, _DI, _LO, _CP, _US, _VS, _AS = range(14)
 N_WORK_ROWS = 14
-# entries of the scalar work array S
-_FC, _EIN, _EVIS, _EISO, _AGC, _KC = range(6)
-N_SCALARS = 12  # second half keeps the saved copy
+# entries of the scalar work array S (the second half keeps a saved copy)
+_FC, _EIN, _EVIS, _EISO, _AGC = range(5)
+N_SCALARS = 10
+# entries of the per-run summary ``out``
+OUT_UPEAK, OUT_URES, OUT_VBPEAK, OUT_EISO, OUT_EERR, OUT_NSUB = range(6)
+N_OUT = 6
 
 
 @njit(cache=True)
-def _iso(code, p, count, s, sc, st, u, v, h):
-    """Layer force [kN] and tangent [kN/m] by similitude: count s^2 F(u/s, v/s), count s k."""
-    f, k, status = law_step(code, p, sc, u / s, v / s, h, st)
-    return count * s * s * f, count * s * k, status
+def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
+              store, W, sc, st, sc_save, S, U, V, A, F, E, iters, levels, drift, acc, out):
+    """One analysis from rest; the whole step logic in one flat loop.
 
+    Parameters
+    ----------
+    code, p : law dispatch code and parameters (law scale); count, s : bearings and similitude.
+    m (ndof) : masses [base, floors] [t]; ks, cs (ndof-1) story springs [kN/m] and dashpots
+        [kN s/m]; cg (ndof) dashpots to the ground [kN s/m]; hts (ndof-1) story heights [m].
+    state0 : the law's initial state.  ag : ground acceleration [m/s^2] every ``dt`` [s].
+    gamma, beta, tol, max_iter, max_levels : Newmark, Newton and subdivision settings.
+    store : write the histories ``U``, ``V`` (relative), ``A`` (absolute) (nt, ndof), ``F``,
+        ``E`` (nt, 5: input, kinetic, viscous, isolator work, story strain), ``iters``, ``levels``;
+        otherwise these are not touched (pass (1, ndof) dummies).
+    W, sc, st, sc_save, S : work arrays (N_WORK_ROWS x ndof, state x 3, N_SCALARS).
+    drift, acc (ndof-1) : receive the peak |drift ratio| per story and the peak |absolute
+        acceleration| per floor; out (N_OUT) : peak |u_0|, residual |u_0|, peak base shear,
+        isolator work, energy error, number of subdivided steps.
 
-@njit(cache=True)
-def _try_step(code, p, count, s, m, ks, cs, cg, h, ag1, gamma, beta, tol, max_iter, W, sc, st):
-    """One Newmark step of size ``h`` from the committed rows to the trial rows of ``W``.
-
-    Returns (status, iterations, isolator force, isolator tangent).
+    Returns
+    -------
+    (status, index of the failing output step or -1).
     """
     n = m.shape[0]
-    c1 = gamma / (beta * h)
-    c2 = 1.0 / (beta * h * h)
-    u = W[_U]
-    v = W[_V]
-    a = W[_A]
-    ut = W[_UT]
-    vt = W[_VT]
-    at = W[_AT]
-    du = W[_DU]
-    r = W[_R]
-    di = W[_DI]
-    lo = W[_LO]
-    cp = W[_CP]
-    for j in range(n):
-        ut[j] = u[j]
-        vt[j] = (1.0 - gamma / beta) * v[j] + h * (1.0 - gamma / (2.0 * beta)) * a[j]
-        at[j] = (1.0 - 1.0 / (2.0 * beta)) * a[j] - v[j] / (beta * h)
-    f, kt, status = _iso(code, p, count, s, sc, st, ut[0], vt[0], h)
-    if status != 0:
-        return status, 0, f, kt
-    if not (math.isfinite(f) and math.isfinite(kt)):
-        return -3, 0, f, kt
-    for it in range(max_iter):
-        # residual and effective tangent
-        for j in range(n):
-            r[j] = -m[j] * (ag1 + at[j]) - cg[j] * vt[j]
-            di[j] = c2 * m[j] + c1 * cg[j]
-        r[0] -= f
-        di[0] += kt
-        for i in range(1, n):  # story i joins DOF i-1 and DOF i
-            ke = ks[i - 1] + c1 * cs[i - 1]
-            fs = ks[i - 1] * (ut[i] - ut[i - 1]) + cs[i - 1] * (vt[i] - vt[i - 1])
-            r[i] -= fs
-            r[i - 1] += fs
-            di[i] += ke
-            di[i - 1] += ke
-            lo[i] = -ke
-        # Thomas algorithm (symmetric tridiagonal), solution in du
-        b = di[0]
-        du[0] = r[0] / b
-        for i in range(1, n):
-            cp[i - 1] = lo[i] / b
-            b = di[i] - lo[i] * cp[i - 1]
-            du[i] = (r[i] - lo[i] * du[i - 1]) / b
-        for i in range(n - 2, -1, -1):
-            du[i] -= cp[i] * du[i + 1]
-        norm = 0.0
-        for j in range(n):
-            ut[j] += du[j]
-            vt[j] += c1 * du[j]
-            at[j] += c2 * du[j]
-            norm += du[j] * du[j]
-        f, kt, status = _iso(code, p, count, s, sc, st, ut[0], vt[0], h)
-        if status != 0:
-            return status, it + 1, f, kt
-        if not (math.isfinite(f) and math.isfinite(kt) and math.isfinite(norm)):
-            return -3, it + 1, f, kt
-        if math.sqrt(norm) < tol:
-            return 0, it + 1, f, kt
-    return -4, max_iter, f, kt
-
-
-@njit(cache=True)
-def _commit(m, ks, cs, cg, ag1, f, kt, W, sc, st, S):
-    """Accumulate the energy increments of the converged trial state, then commit it."""
-    n = m.shape[0]
-    u = W[_U]
-    v = W[_V]
-    a = W[_A]
-    ut = W[_UT]
-    vt = W[_VT]
-    at = W[_AT]
-    e_in = 0.0
-    e_vis = 0.0
-    agm = 0.5 * (S[_AGC] + ag1)
-    for j in range(n):
-        dj = ut[j] - u[j]
-        e_in -= m[j] * agm * dj
-        e_vis += 0.5 * cg[j] * (v[j] + vt[j]) * dj
-    for i in range(1, n):
-        dd = (ut[i] - ut[i - 1]) - (u[i] - u[i - 1])
-        e_vis += 0.5 * cs[i - 1] * ((v[i] - v[i - 1]) + (vt[i] - vt[i - 1])) * dd
-    S[_EIN] += e_in
-    S[_EVIS] += e_vis
-    S[_EISO] += 0.5 * (S[_FC] + f) * (ut[0] - u[0])
-    S[_FC] = f
-    S[_KC] = kt
-    S[_AGC] = ag1
-    for j in range(n):
-        u[j] = ut[j]
-        v[j] = vt[j]
-        a[j] = at[j]
-    for q in range(sc.shape[0]):
-        sc[q] = st[q]
-
-
-@njit(cache=True)
-def _advance(code, p, count, s, m, ks, cs, cg, h, ag0, ag1, gamma, beta, tol, max_iter, max_levels,
-             W, sc, st, sc_save, S):
-    """Advance one output step of size ``h`` (ground acceleration ag0 -> ag1), subdividing on
-    failure.  Returns (status, Newton iterations, subdivision level used)."""
-    n = m.shape[0]
+    nt = ag.shape[0]
+    nst = sc.shape[0]
     ns = S.shape[0] // 2
-    for j in range(n):
-        W[_US, j] = W[_U, j]
-        W[_VS, j] = W[_V, j]
-        W[_AS, j] = W[_A, j]
-    for q in range(sc.shape[0]):
-        sc_save[q] = sc[q]
-    for q in range(ns):
-        S[ns + q] = S[q]
-    iters = 0
-    nsub = 1
-    status = 0
-    for level in range(max_levels + 1):
-        status = 0
-        for k in range(nsub):
-            agk = ag1 if k == nsub - 1 else ag0 + (ag1 - ag0) * (k + 1) / nsub
-            status, it, f, kt = _try_step(code, p, count, s, m, ks, cs, cg, h / nsub, agk, gamma, beta,
-                                          tol, max_iter, W, sc, st)
-            iters += it
-            if status != 0:
-                break
-            _commit(m, ks, cs, cg, agk, f, kt, W, sc, st, S)
-        if status == 0:
-            return 0, iters, level
-        # restore the state at the start of the step and retry with twice as many substeps
+    # ---- at rest, initial acceleration solved exactly: a_0 = -a_g(0) 1 (no force at rest)
+    for r in range(W.shape[0]):
         for j in range(n):
-            W[_U, j] = W[_US, j]
-            W[_V, j] = W[_VS, j]
-            W[_A, j] = W[_AS, j]
-        for q in range(sc.shape[0]):
-            sc[q] = sc_save[q]
-            st[q] = sc_save[q]
-        for q in range(ns):
-            S[q] = S[ns + q]
-        nsub *= 2
-    return status, iters, max_levels
-
-
-@njit(cache=True)
-def _start(m, ag0, state0, W, sc, st, S):
-    """At rest with the initial acceleration solved exactly: a_0 = -a_g(0) 1 (no force at rest)."""
-    W[:, :] = 0.0
-    S[:] = 0.0
-    for j in range(m.shape[0]):
-        W[_A, j] = -ag0
-    for q in range(state0.shape[0]):
+            W[r, j] = 0.0
+    for j in range(n):
+        W[_A, j] = -ag[0]
+    for q in range(S.shape[0]):
+        S[q] = 0.0
+    S[_AGC] = ag[0]
+    for q in range(nst):
         sc[q] = state0[q]
         st[q] = state0[q]
-    S[_AGC] = ag0
-
-
-@njit(cache=True)
-def _stored_energy(m, ks, W):
-    """(kinetic, recoverable strain of the stories) of the committed state [kN m]."""
-    ek = 0.0
-    es = 0.0
-    for j in range(m.shape[0]):
-        ek += 0.5 * m[j] * W[_V, j] * W[_V, j]
-    for i in range(1, m.shape[0]):
-        d = W[_U, i] - W[_U, i - 1]
-        es += 0.5 * ks[i - 1] * d * d
-    return ek, es
-
-
-@njit(cache=True)
-def history(code, p, count, s, m, ks, cs, cg, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
-            U, V, A, F, E, iters, levels):
-    """Full response histories.
-
-    Writes, for every output step k (time k dt): ``U``, ``V`` (ndof) relative displacement and
-    velocity, ``A`` (ndof) absolute acceleration, ``F`` isolator force, ``E`` (5) energies
-    [input, kinetic, viscous, isolator work, story strain], ``iters`` Newton iterations and
-    ``levels`` subdivision level.  Returns (status, failing step index or -1).
-    """
-    n = m.shape[0]
-    W = np.zeros((N_WORK_ROWS, n))
-    sc = np.zeros(state0.shape[0])
-    st = np.zeros(state0.shape[0])
-    sc_save = np.zeros(state0.shape[0])
-    S = np.zeros(N_SCALARS)
-    _start(m, ag[0], state0, W, sc, st, S)
-    for j in range(n):
-        U[0, j] = 0.0
-        V[0, j] = 0.0
-        A[0, j] = 0.0
-    F[0] = 0.0
-    E[0, :] = 0.0
-    iters[0] = 0
-    levels[0] = 0
-    for k in range(1, ag.shape[0]):
-        status, it, lev = _advance(code, p, count, s, m, ks, cs, cg, dt, ag[k - 1], ag[k], gamma, beta,
-                                   tol, max_iter, max_levels, W, sc, st, sc_save, S)
-        iters[k] = it
-        levels[k] = lev
-        if status != 0:
-            for j in range(n):
-                U[k, j] = W[_U, j]
-                V[k, j] = W[_V, j]
-            return status, k
-        for j in range(n):
-            U[k, j] = W[_U, j]
-            V[k, j] = W[_V, j]
-            A[k, j] = W[_A, j] + ag[k]
-        F[k] = S[_FC]
-        ek, es = _stored_energy(m, ks, W)
-        E[k, 0] = S[_EIN]
-        E[k, 1] = ek
-        E[k, 2] = S[_EVIS]
-        E[k, 3] = S[_EISO]
-        E[k, 4] = es
-    return 0, -1
-
-
-@njit(cache=True)
-def _peaks_one(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter,
-               max_levels, W, sc, st, sc_save, S, drift, acc):
-    """One analysis, peaks only.  ``drift`` (n-1) and ``acc`` (n-1) receive the peak |drift ratio|
-    per story and the peak |absolute acceleration| per floor.  Returns (status, peak |u_0|,
-    residual |u_0|, peak base shear, isolator work, energy error, subdivided steps)."""
-    n = m.shape[0]
-    _start(m, ag[0], state0, W, sc, st, S)
     for i in range(n - 1):
         drift[i] = 0.0
         acc[i] = 0.0
+    for q in range(out.shape[0]):
+        out[q] = 0.0
+    if store:
+        for j in range(n):
+            U[0, j] = 0.0
+            V[0, j] = 0.0
+            A[0, j] = 0.0
+        F[0] = 0.0
+        for q in range(E.shape[1]):
+            E[0, q] = 0.0
+        iters[0] = 0
+        levels[0] = 0
     umax = 0.0
     vbmax = 0.0
     imb_max = 0.0
     ein_max = 0.0
-    nsub = 0
-    for k in range(1, ag.shape[0]):
-        status, it, lev = _advance(code, p, count, s, m, ks, cs, cg, dt, ag[k - 1], ag[k], gamma, beta,
-                                   tol, max_iter, max_levels, W, sc, st, sc_save, S)
+    nsubdiv = 0
+    cc = count * s * s
+    ck = count * s
+    for k in range(1, nt):
+        ag0 = ag[k - 1]
+        ag1 = ag[k]
+        n_it = 0
+        status = 0
+        level = 0
+        for level in range(max_levels + 1):
+            if level == 1:  # the failed first try committed nothing: save the state at step k-1
+                for j in range(n):
+                    W[_US, j] = W[_U, j]
+                    W[_VS, j] = W[_V, j]
+                    W[_AS, j] = W[_A, j]
+                for q in range(nst):
+                    sc_save[q] = sc[q]
+                for q in range(ns):
+                    S[ns + q] = S[q]
+            elif level > 1:  # restore it
+                for j in range(n):
+                    W[_U, j] = W[_US, j]
+                    W[_V, j] = W[_VS, j]
+                    W[_A, j] = W[_AS, j]
+                for q in range(nst):
+                    sc[q] = sc_save[q]
+                for q in range(ns):
+                    S[q] = S[ns + q]
+            if level > 0:
+                for q in range(nst):
+                    st[q] = sc[q]
+            nsub = 1 << level
+            h = dt / nsub
+            c1 = gamma / (beta * h)
+            c2 = 1.0 / (beta * h * h)
+            status = 0
+            for sub in range(nsub):
+                agk = ag1 if sub == nsub - 1 else ag0 + (ag1 - ag0) * (sub + 1) / nsub
+                # -- predictor
+                for j in range(n):
+                    W[_UT, j] = W[_U, j]
+                    W[_VT, j] = (1.0 - gamma / beta) * W[_V, j] + h * (1.0 - gamma / (2.0 * beta)) * W[_A, j]
+                    W[_AT, j] = (1.0 - 1.0 / (2.0 * beta)) * W[_A, j] - W[_V, j] / (beta * h)
+                f = 0.0
+                kt = 0.0
+                converged = False
+                for it in range(max_iter + 1):
+                    norm = 0.0
+                    if it > 0:
+                        # -- residual and effective tangent at the current trial state
+                        for j in range(n):
+                            W[_R, j] = -m[j] * (agk + W[_AT, j]) - cg[j] * W[_VT, j]
+                            W[_DI, j] = c2 * m[j] + c1 * cg[j]
+                        W[_R, 0] -= f
+                        W[_DI, 0] += kt
+                        for i in range(1, n):  # story i joins DOF i-1 and DOF i
+                            ke = ks[i - 1] + c1 * cs[i - 1]
+                            fs = (ks[i - 1] * (W[_UT, i] - W[_UT, i - 1])
+                                  + cs[i - 1] * (W[_VT, i] - W[_VT, i - 1]))
+                            W[_R, i] -= fs
+                            W[_R, i - 1] += fs
+                            W[_DI, i] += ke
+                            W[_DI, i - 1] += ke
+                            W[_LO, i] = -ke
+                        # -- Thomas algorithm (symmetric tridiagonal), solution in row _DU
+                        inv = 1.0 / W[_DI, 0]
+                        W[_DU, 0] = W[_R, 0] * inv
+                        for i in range(1, n):
+                            W[_CP, i - 1] = W[_LO, i] * inv
+                            inv = 1.0 / (W[_DI, i] - W[_LO, i] * W[_CP, i - 1])
+                            W[_DU, i] = (W[_R, i] - W[_LO, i] * W[_DU, i - 1]) * inv
+                        for i in range(n - 2, -1, -1):
+                            W[_DU, i] -= W[_CP, i] * W[_DU, i + 1]
+                        for j in range(n):
+                            d = W[_DU, j]
+                            W[_UT, j] += d
+                            W[_VT, j] += c1 * d
+                            W[_AT, j] += c2 * d
+                            norm += d * d
+                    # -- isolator update at the trial state (the only law call site)
+                    ul = W[_UT, 0] / s
+                    vl = W[_VT, 0] / s
+                    if code[3] == 0 and code[0] == bouc_wen.KERNEL_ID:
+                        fl, kl, status = bouc_wen.step(p, sc, ul, vl, h, st)
+                    elif code[3] == 0 and code[0] == plasticity.KERNEL_ID:
+                        fl, kl, status = plasticity.step(p, sc, ul, vl, h, st)
+                    elif code[3] == 0 and code[0] == elastomeric_x.KERNEL_ID:
+                        fl, kl, status = elastomeric_x.step(p, sc, ul, vl, h, st)
+                    elif code[3] == 0 and code[0] == hdr.KERNEL_ID:
+                        fl, kl, status = hdr.step(p, sc, ul, vl, h, st)
+                    elif code[3] == 0 and code[0] == linear.KERNEL_ID:
+                        fl, kl, status = linear.step(p, sc, ul, vl, h, st)
+                    else:
+                        fl, kl, status = law_step(code, p, sc, ul, vl, h, st)
+                    f = cc * fl
+                    kt = ck * kl
+                    n_it += 1 if it > 0 else 0
+                    if status != 0:
+                        break
+                    if not (math.isfinite(f) and math.isfinite(kt) and math.isfinite(norm)):
+                        status = -3
+                        break
+                    if it > 0 and math.sqrt(norm) < tol:
+                        converged = True
+                        break
+                if status == 0 and not converged:
+                    status = -4
+                if status != 0:
+                    break
+                # -- commit: energy increments (trapezoidal), then trial -> committed
+                e_in = 0.0
+                e_vis = 0.0
+                agm = 0.5 * (S[_AGC] + agk)
+                for j in range(n):
+                    dj = W[_UT, j] - W[_U, j]
+                    e_in -= m[j] * agm * dj
+                    e_vis += 0.5 * cg[j] * (W[_V, j] + W[_VT, j]) * dj
+                for i in range(1, n):
+                    dd = (W[_UT, i] - W[_UT, i - 1]) - (W[_U, i] - W[_U, i - 1])
+                    e_vis += 0.5 * cs[i - 1] * ((W[_V, i] - W[_V, i - 1]) + (W[_VT, i] - W[_VT, i - 1])) * dd
+                S[_EIN] += e_in
+                S[_EVIS] += e_vis
+                S[_EISO] += 0.5 * (S[_FC] + f) * (W[_UT, 0] - W[_U, 0])
+                S[_FC] = f
+                S[_AGC] = agk
+                for j in range(n):
+                    W[_U, j] = W[_UT, j]
+                    W[_V, j] = W[_VT, j]
+                    W[_A, j] = W[_AT, j]
+                for q in range(nst):
+                    sc[q] = st[q]
+            if status == 0:
+                break
+        if store:
+            iters[k] = n_it
+            levels[k] = level
         if status != 0:
-            return status, umax, 0.0, vbmax, S[_EISO], 0.0, nsub
-        if lev > 0:
-            nsub += 1
+            if store:
+                for j in range(n):
+                    U[k, j] = W[_U, j]
+                    V[k, j] = W[_V, j]
+            out[OUT_UPEAK] = umax
+            out[OUT_NSUB] = nsubdiv
+            return status, k
+        if level > 0:
+            nsubdiv += 1
+        # -- output step k: stored energies, peaks, histories
+        ek = 0.0
+        es = 0.0
+        for j in range(n):
+            ek += 0.5 * m[j] * W[_V, j] * W[_V, j]
+        for i in range(1, n):
+            d = W[_U, i] - W[_U, i - 1]
+            es += 0.5 * ks[i - 1] * d * d
+            dr = abs(d) / hts[i - 1]
+            if dr > drift[i - 1]:
+                drift[i - 1] = dr
+            aa = abs(W[_A, i] + ag1)
+            if aa > acc[i - 1]:
+                acc[i - 1] = aa
         u0 = abs(W[_U, 0])
         if u0 > umax:
             umax = u0
-        for i in range(1, n):
-            dr = abs(W[_U, i] - W[_U, i - 1]) / hts[i - 1]
-            if dr > drift[i - 1]:
-                drift[i - 1] = dr
-            aa = abs(W[_A, i] + ag[k])
-            if aa > acc[i - 1]:
-                acc[i - 1] = aa
         vb = abs(ks[0] * (W[_U, 1] - W[_U, 0]) + cs[0] * (W[_V, 1] - W[_V, 0]))
         if vb > vbmax:
             vbmax = vb
-        ek, es = _stored_energy(m, ks, W)
         imb = abs(S[_EIN] - ek - S[_EVIS] - S[_EISO] - es)
         if imb > imb_max:
             imb_max = imb
         if abs(S[_EIN]) > ein_max:
             ein_max = abs(S[_EIN])
-    err = imb_max / ein_max if ein_max > 0.0 else 0.0
-    return 0, umax, abs(W[_U, 0]), vbmax, S[_EISO], err, nsub
+        if store:
+            for j in range(n):
+                U[k, j] = W[_U, j]
+                V[k, j] = W[_V, j]
+                A[k, j] = W[_A, j] + ag1
+            F[k] = S[_FC]
+            E[k, 0] = S[_EIN]
+            E[k, 1] = ek
+            E[k, 2] = S[_EVIS]
+            E[k, 3] = S[_EISO]
+            E[k, 4] = es
+    out[OUT_UPEAK] = umax
+    out[OUT_URES] = abs(W[_U, 0])
+    out[OUT_VBPEAK] = vbmax
+    out[OUT_EISO] = S[_EISO]
+    out[OUT_EERR] = imb_max / ein_max if ein_max > 0.0 else 0.0
+    out[OUT_NSUB] = nsubdiv
+    return 0, -1
+
+
+def work_arrays(ndof: int, state_size: int):
+    """(W, sc, st, sc_save, S) for :func:`integrate`."""
+    return (np.zeros((N_WORK_ROWS, ndof)), np.zeros(state_size), np.zeros(state_size), np.zeros(state_size),
+            np.zeros(N_SCALARS))
 
 
 @njit(cache=True, parallel=True)
 def batch(code, P, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
-          n_blocks, status, u_peak, u_res, drift, acc, vb, e_iso, e_err, n_sub):
-    """Run the parameter sets ``P`` (m_runs, n_params) in ``n_blocks`` parallel blocks.
+          n_blocks, status, drift, acc, out):
+    """Run the parameter sets ``P`` (runs, n_params) in ``n_blocks`` parallel blocks.
 
-    Each block allocates its work arrays once and runs its analyses one after another
-    (one thread per analysis at a time).  Outputs are per run (first axis).
+    Each block allocates its work arrays once and runs its analyses one after another (one thread
+    per analysis at a time).  Per run: ``status``, ``drift`` / ``acc`` rows and ``out`` rows as in
+    :func:`integrate`.
     """
     runs = P.shape[0]
     n = m.shape[0]
@@ -336,18 +322,17 @@ def batch(code, P, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, to
         st = np.zeros(nst)
         sc_save = np.zeros(nst)
         S = np.zeros(N_SCALARS)
+        U = np.zeros((1, n))
+        F = np.zeros(1)
+        E = np.zeros((1, 5))
+        it = np.zeros(1, dtype=np.int64)
         lo = (runs * b) // n_blocks
         hi = (runs * (b + 1)) // n_blocks
         for r in range(lo, hi):
-            out = _peaks_one(code, P[r], count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol,
-                             max_iter, max_levels, W, sc, st, sc_save, S, drift[r], acc[r])
-            status[r] = out[0]
-            u_peak[r] = out[1]
-            u_res[r] = out[2]
-            vb[r] = out[3]
-            e_iso[r] = out[4]
-            e_err[r] = out[5]
-            n_sub[r] = out[6]
+            res = integrate(code, P[r], count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol,
+                            max_iter, max_levels, False, W, sc, st, sc_save, S, U, U, U, F, E, it, it,
+                            drift[r], acc[r], out[r])
+            status[r] = res[0]
 
 
 # =============================================================================================
@@ -535,9 +520,13 @@ def time_history(
     E = np.zeros((n, len(_energy.TERMS)))
     iters = np.zeros(n, dtype=np.int64)
     levels = np.zeros(n, dtype=np.int64)
-    status, k = history(spec.code, p, float(iso.count), float(iso.length_scale), m, ks, cs, cg,
-                        np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv,
-                        U, V, A, F, E, iters, levels)
+    W, sc, st, sc_save, S = work_arrays(ndof, spec.state_size)
+    drift_pk = np.zeros(ndof - 1)
+    acc_pk = np.zeros(ndof - 1)
+    out = np.zeros(N_OUT)
+    status, k = integrate(spec.code, p, float(iso.count), float(iso.length_scale), m, ks, cs, cg, hts,
+                          np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, True,
+                          W, sc, st, sc_save, S, U, V, A, F, E, iters, levels, drift_pk, acc_pk, out)
     if status != 0:
         raise ConvergenceError(
             f"record {name!r}: the step to t = {k * h:.6g} s (step {k}) failed even in "
@@ -595,8 +584,9 @@ def time_history_batch(
     Returns
     -------
     dict of arrays over the m runs: ``iso_disp_peak`` [m], ``iso_disp_residual`` [m] (|u_0| at
-    the end), ``iso_disp_max_abs`` [m] (= peak), ``drift_peak`` (m, stories) [-],
-    ``floor_acc_peak`` (m, stories) absolute [m/s^2], ``base_shear_peak`` [kN], ``iso_energy``
+    the end), ``iso_disp_max_abs`` [m] (= peak; for a failed run the largest reached before it
+    failed), ``drift_peak`` (m, stories) [-], ``floor_acc_peak`` (m, stories) absolute
+    [m/s^2], ``base_shear_peak`` [kN], ``iso_energy``
     (isolator work at the end) [kN m], ``energy_error`` [-], ``subdivided_steps``, ``status``
     (0 = converged) and ``converged`` (bool).  Runs that failed hold NaN demands.
     """
@@ -625,31 +615,27 @@ def time_history_batch(
         n_blocks = 4 * numba.get_num_threads()
     nb = max(1, min(int(n_blocks), runs))
     status = np.zeros(runs, dtype=np.int64)
-    u_peak = np.zeros(runs)
-    u_res = np.zeros(runs)
     drift = np.zeros((runs, nst))
     acc = np.zeros((runs, nst))
-    vb = np.zeros(runs)
-    e_iso = np.zeros(runs)
-    e_err = np.zeros(runs)
-    n_sub = np.zeros(runs, dtype=np.int64)
+    res = np.zeros((runs, N_OUT))
     if runs:
         batch(spec.code, P, float(iso.count), float(iso.length_scale), m, ks, cs, cg, hts,
-              np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, nb,
-              status, u_peak, u_res, drift, acc, vb, e_iso, e_err, n_sub)
+              np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, nb, status, drift, acc, res)
     ok = status == 0
+    u_peak = res[:, OUT_UPEAK].copy()
     out = {
         "iso_disp_peak": u_peak,
-        "iso_disp_residual": u_res,
+        "iso_disp_residual": res[:, OUT_URES].copy(),
         "drift_peak": drift,
         "floor_acc_peak": acc,
-        "base_shear_peak": vb,
-        "iso_energy": e_iso,
-        "energy_error": e_err,
+        "base_shear_peak": res[:, OUT_VBPEAK].copy(),
+        "iso_energy": res[:, OUT_EISO].copy(),
+        "energy_error": res[:, OUT_EERR].copy(),
     }
     for arr in out.values():
         arr[~ok] = np.nan
-    out["iso_disp_max_abs"] = u_peak.copy()
+    n_sub = res[:, OUT_NSUB].astype(np.int64)
+    out["iso_disp_max_abs"] = res[:, OUT_UPEAK].copy()  # failed runs: the largest before failing
     out["subdivided_steps"] = n_sub
     out["status"] = status
     out["converged"] = ok

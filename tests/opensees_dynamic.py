@@ -167,7 +167,7 @@ def shear_building_one_call(ops, building, ag, dt: float, **kw) -> np.ndarray:
     fd, path = tempfile.mkstemp(suffix=".out")
     os.close(fd)
     try:
-        ops.recorder("Node", "-file", path, "-node", 2, roof, "-dof", 1, "disp")
+        ops.recorder("Node", "-file", path, "-precision", 17, "-node", 2, roof, "-dof", 1, "disp")
         if ops.analyze(ag.size - 1, dt) != 0:
             raise RuntimeError("OpenSees failed")
         ops.wipe()  # flushes and closes the recorder
