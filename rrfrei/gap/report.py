@@ -44,15 +44,16 @@ def figures(rep: GapReport) -> dict:
     if len(w):
         piv = w.set_index(["axis", "segment"])[["error_share", "rms_over_noise", "coverage", "energy_error"]]
         vals = piv.to_numpy(dtype=float)
-        norm = vals / np.nanmax(np.abs(vals), axis=0, keepdims=True)
-        ax2.imshow(np.nan_to_num(norm), aspect="auto", cmap="magma_r")
+        lo, hi = np.nanmin(vals, axis=0, keepdims=True), np.nanmax(vals, axis=0, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            norm = np.where(hi > lo, (vals - lo) / (hi - lo), 0.5)  # each column on its own range
+        ax2.imshow(np.ma.masked_invalid(norm), aspect="auto", cmap="YlOrRd", vmin=0, vmax=1)
         ax2.set_yticks(range(len(piv)), [f"{a}: {s}" for a, s in piv.index], fontsize=6)
         ax2.set_xticks(range(4), ["error share", "RMS / noise", "coverage", "energy err."], fontsize=7)
         for i in range(vals.shape[0]):
             for j in range(vals.shape[1]):
                 if math.isfinite(vals[i, j]):
-                    ax2.text(j, i, f"{vals[i, j]:.2g}", ha="center", va="center", fontsize=5,
-                             color="tab:blue")
+                    ax2.text(j, i, f"{vals[i, j]:.2g}", ha="center", va="center", fontsize=6)
         ax2.set_title("segments ranked by excess error over noise")
     out["gap_map.png"] = fig
     final = "+".join([rep.law, *rep.combination])
@@ -93,6 +94,30 @@ def _f(x, d=1) -> str:
     return "n/a" if x is None or not math.isfinite(x) else f"{x:.{d}f}"
 
 
+def _summary(rep: GapReport) -> str:
+    """One paragraph: what was found, in words."""
+    if not rep.ranking:
+        return "No effect could be judged."
+    lead = max(rep.ranking, key=lambda s: s.delta_elpd)
+    txt = (f"Baseline gap: {_pct(rep.baseline[0].gap)} on the calibration test (systematic part "
+           f"{_pct(rep.baseline[0].systematic)})")
+    if rep.baseline[1] is not None:
+        txt += f", {_pct(rep.baseline[1].gap)} pooled over the held-out tests " \
+               f"(systematic {_pct(rep.baseline[1].systematic)})"
+    txt += (f". Largest calibration gain: `{lead.effect}`, delta elpd {_f(lead.delta_elpd)} +- "
+            f"{_f(lead.se)} (leave-one-cycle-out)")
+    if math.isfinite(lead.delta_holdout):
+        txt += (f"; on the held-out tests {_f(lead.delta_holdout)} +- {_f(lead.se_holdout)}, held-out "
+                f"systematic gap shrink {_pct(lead.shrink_holdout)}")
+    if rep.diagnosis == "none":
+        txt += (". No effect is significant by the rule (gain > 2 se on the calibration test and, with "
+                "held-out tests, on them too, with the held-out systematic gap shrinking): the diagnosis "
+                "is `none`")
+    else:
+        txt += f". Named: `{rep.diagnosis}`; combination `{'+'.join(rep.combination)}`"
+    return txt + "."
+
+
 def write_report(rep: GapReport, out: str | Path, *, title: str | None = None) -> Path:
     """Write ``out/report.md`` and the figures; return the Markdown path."""
     out = Path(out)
@@ -108,6 +133,7 @@ def write_report(rep: GapReport, out: str | Path, *, title: str | None = None) -
              f"`{'+'.join(rep.combination) if rep.combination else 'none'}`.", ""]
     for n in rep.notes:
         lines += [f"> {n}", ""]
+    lines += [_summary(rep), ""]
     lines += ["## How far it shrinks", "",
               "| model | data | gap (NRMSE) | systematic | energy/cycle error | band coverage |",
               "|---|---|---|---|---|---|"]
