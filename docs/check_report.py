@@ -22,7 +22,7 @@ What it does
    resource load); any message at level error, or any exception, fails the check.
 5. Saves a full-page screenshot (``Page.captureScreenshot`` with ``captureBeyondViewport``) to
    ``--screenshot`` (default ``docs/report.png``; the full page height is capped by
-   ``--max-height`` pixels to keep the file small).
+   ``--max-height`` pixels, default 5000, to keep the file small).
 
 Prints one line per finding and ``report check: OK`` or ``report check: FAILED``; exit status 0
 when the page passed, 1 when a check failed, 2 on a usage error (no such folder, no Chromium,
@@ -155,7 +155,7 @@ def _new_page(browser_ws: str, timeout: float) -> str:
     return f"{host}/devtools/page/{target}"
 
 
-def check(report_dir: Path, screenshot: Path, *, width: int = 1200, max_height: int = 9000,
+def check(report_dir: Path, screenshot: Path, *, width: int = 1200, max_height: int = 5000,
           timeout: float = 60.0) -> list[str]:
     """Render ``report_dir/index.html``; return the list of problems (empty: passed)."""
     page = (report_dir / "index.html").resolve()
@@ -232,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--screenshot", type=Path,
                         default=Path(__file__).resolve().with_name("report.png"))
     parser.add_argument("--width", type=int, default=1200)
-    parser.add_argument("--max-height", type=int, default=9000)
+    parser.add_argument("--max-height", type=int, default=5000)
     args = parser.parse_args(argv)
     try:
         import websocket  # noqa: F401

@@ -80,13 +80,14 @@ class DemoSettings:
     seed: int = 0
     laws: tuple[str, ...] = LAWS
     walkers: int = 32
-    steps: int = 1500
+    steps: int | None = None  # None: until converged (>= 50 tau, stable), up to max_steps
+    max_steps: int = 2000
     gap_draws: int = 200
     n_samples: int = 100
     records: tuple[str, ...] | None = None  # None: every bundled record
     scales: tuple[float, ...] = (0.5, 1.0, 1.5)
     building: str = "five_story"
-    rubber_evals: int = 3000
+    rubber_evals: int = 2000
     rubber_restarts: int = 2
     predict_draws: int = 200
 
@@ -105,7 +106,7 @@ class DemoSettings:
             n_samples=16,
             records=("elcentro", "kocaeli"),
             scales=(1.0,),
-            rubber_evals=500,
+            rubber_evals=300,
             rubber_restarts=1,
             predict_draws=100,
         )
@@ -239,8 +240,8 @@ def step_calibrate(ctx: DemoContext, sec: Section) -> None:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # convergence is reported in the table instead
-                cal = calibrate(test, law, walkers=s.walkers, steps=s.steps, seed=s.seed,
-                                progress=ctx.progress)
+                cal = calibrate(test, law, walkers=s.walkers, steps=s.steps, max_steps=s.max_steps,
+                                seed=s.seed, progress=ctx.progress)
         except Exception as exc:  # one law failing must not hide the others
             failed[law] = f"{type(exc).__name__}: {exc}"
             ax.set_title(f"{law}: calibration failed", fontsize=9)

@@ -151,6 +151,7 @@ def _table_html(df: pd.DataFrame, max_rows: int) -> str:
         float_format=lambda v: fmt(v),
         escape=True,
     )
+    body = f'<div class="scroll">{body}</div>'
     if len(df) > max_rows:
         body += f'<p class="more">First {max_rows} of {len(df)} rows; the CSV file has them all.</p>'
     return body
@@ -168,6 +169,7 @@ h1 { margin-bottom: 0.2em; } h2 { border-bottom: 1px solid #ccc; padding-bottom:
 .error { background: #fde8e8; border: 1px solid #d66; padding: 0.6em 0.9em; white-space: pre-wrap;
          font-family: ui-monospace, monospace; font-size: 0.9em; }
 .placeholder { background: #fff0e0; border: 1px dashed #d90; padding: 0.6em 0.9em; }
+.scroll { overflow-x: auto; max-width: 100%; }
 table.data { border-collapse: collapse; font-size: 0.85em; margin: 0.5em 0 1em 0; }
 table.data th, table.data td { padding: 0.2em 0.6em; border-bottom: 1px solid #ddd; text-align: right; }
 table.data th { background: #f0f0f0; }
@@ -192,7 +194,7 @@ class Report:
     banners: list[tuple[str, str]] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
     sections: list[Section] = field(default_factory=list)
-    max_rows: int = 60
+    max_rows: int = 30
 
     def add(self, section: Section) -> Section:
         if any(s.key == section.key for s in self.sections):
