@@ -14,9 +14,10 @@ What it does
    package from PyPI, ``pip install websocket-client``): enables the Runtime, Log and Page
    domains, opens ``file://REPORT_DIR/index.html`` and waits for the load event.
 3. Checks that the page rendered: a title and at least one ``<h2>`` section heading exist, the body
-   has text, every ``<img>`` finished loading with a non-zero natural width (so every embedded
-   base64 PNG decoded), and the page made no network request other than its own file and
-   ``data:`` URIs (it must be self-contained).
+   has text, nothing is wider than the window (wide tables scroll in their box), every ``<img>``
+   finished loading with a non-zero natural width (so every embedded base64 PNG decoded), and
+   the page made no network request other than its own file and ``data:`` URIs (it must be
+   self-contained).
 4. Collects console messages (``Runtime.consoleAPICalled``), uncaught exceptions
    (``Runtime.exceptionThrown``) and browser log entries (``Log.entryAdded``, e.g. a failed
    resource load); any message at level error, or any exception, fails the check.
@@ -186,6 +187,8 @@ def check(report_dir: Path, screenshot: Path, *, width: int = 1200, max_height: 
                 )
                 if not facts["title"] or facts["h1"] < 1 or facts["h2"] < 1 or facts["text"] < 200:
                     problems.append(f"the page looks empty: {facts}")
+                if facts["width"] > width + 20:
+                    problems.append(f"the page is wider ({facts['width']} px) than the window ({width} px)")
                 if facts["images"] == 0:
                     problems.append("the page has no images")
                 for name in facts["broken"]:
