@@ -48,6 +48,34 @@ OUT_UPEAK, OUT_URES, OUT_VBPEAK, OUT_EISO, OUT_EERR, OUT_NSUB = range(6)
 N_OUT = 6
 
 
+@njit(cache=True, inline="always")
+def _factor(m, ks, cs, cg, c1, c2, W):
+    """Superstructure part of K_eff = K_t + c1 C + c2 M (constant for a given step size).
+
+    Writes the off-diagonal W[_LO, j] (DOFs j-1, j) and the factors W[_CP, j] = l_j / d'_j,
+    W[_DI, j] = 1 / d'_j of the elimination from the roof down; returns the base pivot d'_0
+    without the isolator tangent (the only entry that changes between Newton iterations).
+    """
+    n = m.shape[0]
+    d0 = 0.0
+    for j in range(n - 1, -1, -1):
+        dj = c2 * m[j] + c1 * cg[j]
+        if j < n - 1:
+            dj += ks[j] + c1 * cs[j]  # story j+1 above DOF j
+        if j > 0:
+            lj = -(ks[j - 1] + c1 * cs[j - 1])  # story j below DOF j
+            dj -= lj
+            W[_LO, j] = lj
+        if j < n - 1:
+            dj -= W[_LO, j + 1] * W[_CP, j + 1]
+        if j > 0:
+            W[_DI, j] = 1.0 / dj
+            W[_CP, j] = W[_LO, j] / dj
+        else:
+            d0 = dj
+    return d0
+
+
 @njit(cache=True)
 def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
               store, W, sc, st, sc_save, S, U, V, A, F, E, iters, levels, drift, acc, out):
@@ -110,6 +138,8 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
     nsubdiv = 0
     cc = count * s * s
     ck = count * s
+    h_fact = -1.0
+    d0 = 0.0
     for k in range(1, nt):
         ag0 = ag[k - 1]
         ag1 = ag[k]
@@ -142,6 +172,12 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
             h = dt / nsub
             c1 = gamma / (beta * h)
             c2 = 1.0 / (beta * h * h)
+            # superstructure part of K_eff = K_t + c1 C + c2 M (constant for this h): off-diagonal
+            # W[_LO, j] (DOFs j-1, j), factors W[_CP, j] = l_j / d'_j and W[_DI, j] = 1 / d'_j of
+            # the elimination from the roof down, and d0 = the base pivot without the isolator
+            if h != h_fact:
+                d0 = _factor(m, ks, cs, cg, c1, c2, W)
+                h_fact = h
             status = 0
             for sub in range(nsub):
                 agk = ag1 if sub == nsub - 1 else ag0 + (ag1 - ag0) * (sub + 1) / nsub
@@ -156,30 +192,22 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
                 for it in range(max_iter + 1):
                     norm = 0.0
                     if it > 0:
-                        # -- residual and effective tangent at the current trial state
+                        # -- residual at the current trial state
                         for j in range(n):
                             W[_R, j] = -m[j] * (agk + W[_AT, j]) - cg[j] * W[_VT, j]
-                            W[_DI, j] = c2 * m[j] + c1 * cg[j]
                         W[_R, 0] -= f
-                        W[_DI, 0] += kt
                         for i in range(1, n):  # story i joins DOF i-1 and DOF i
-                            ke = ks[i - 1] + c1 * cs[i - 1]
                             fs = (ks[i - 1] * (W[_UT, i] - W[_UT, i - 1])
                                   + cs[i - 1] * (W[_VT, i] - W[_VT, i - 1]))
                             W[_R, i] -= fs
                             W[_R, i - 1] += fs
-                            W[_DI, i] += ke
-                            W[_DI, i - 1] += ke
-                            W[_LO, i] = -ke
-                        # -- Thomas algorithm (symmetric tridiagonal), solution in row _DU
-                        inv = 1.0 / W[_DI, 0]
-                        W[_DU, 0] = W[_R, 0] * inv
-                        for i in range(1, n):
-                            W[_CP, i - 1] = W[_LO, i] * inv
-                            inv = 1.0 / (W[_DI, i] - W[_LO, i] * W[_CP, i - 1])
-                            W[_DU, i] = (W[_R, i] - W[_LO, i] * W[_DU, i - 1]) * inv
-                        for i in range(n - 2, -1, -1):
-                            W[_DU, i] -= W[_CP, i] * W[_DU, i + 1]
+                        # -- K_eff du = R, eliminating from the roof down: only the last pivot
+                        # (the base, d0 + isolator tangent) changes between iterations
+                        for j in range(n - 1, 0, -1):
+                            W[_R, j - 1] -= W[_CP, j] * W[_R, j]
+                        W[_DU, 0] = W[_R, 0] / (d0 + kt)
+                        for j in range(1, n):
+                            W[_DU, j] = (W[_R, j] - W[_LO, j] * W[_DU, j - 1]) * W[_DI, j]
                         for j in range(n):
                             d = W[_DU, j]
                             W[_UT, j] += d
