@@ -78,7 +78,7 @@ def _factor(m, ks, cs, cg, c1, c2, W):
 
 @njit(cache=True)
 def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
-              store, W, sc, st, sc_save, S, U, V, A, F, E, iters, levels, drift, acc, out):
+              store, W, sc, st, sc_save, S, U, VB, A, F, E, iters, levels, drift, acc, out):
     """One analysis from rest; the whole step logic in one flat loop.
 
     Parameters
@@ -88,9 +88,10 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
         [kN s/m]; cg (ndof) dashpots to the ground [kN s/m]; hts (ndof-1) story heights [m].
     state0 : the law's initial state.  ag : ground acceleration [m/s^2] every ``dt`` [s].
     gamma, beta, tol, max_iter, max_levels : Newmark, Newton and subdivision settings.
-    store : write the histories ``U``, ``V`` (relative), ``A`` (absolute) (nt, ndof), ``F``,
-        ``E`` (nt, 5: input, kinetic, viscous, isolator work, story strain), ``iters``, ``levels``;
-        otherwise these are not touched (pass (1, ndof) dummies).
+    store : write the histories ``U`` (relative displacement) and ``A`` (absolute acceleration)
+        (nt, ndof), ``VB`` (story-1 shear), ``F`` (isolator force), ``E`` (nt, 5: input, kinetic,
+        viscous, isolator work, story strain), ``iters``, ``levels``; otherwise these are not
+        touched (pass small dummies).
     W, sc, st, sc_save, S : work arrays (N_WORK_ROWS x ndof, state x 3, N_SCALARS).
     drift, acc (ndof-1) : receive the peak |drift ratio| per story and the peak |absolute
         acceleration| per floor; out (N_OUT) : peak |u_0|, residual |u_0|, peak base shear,
@@ -124,9 +125,9 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
     if store:
         for j in range(n):
             U[0, j] = 0.0
-            V[0, j] = 0.0
             A[0, j] = 0.0
         F[0] = 0.0
+        VB[0] = 0.0
         for q in range(E.shape[1]):
             E[0, q] = 0.0
         iters[0] = 0
@@ -275,7 +276,6 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
             if store:
                 for j in range(n):
                     U[k, j] = W[_U, j]
-                    V[k, j] = W[_V, j]
             out[OUT_UPEAK] = umax
             out[OUT_NSUB] = nsubdiv
             return status, k
@@ -298,9 +298,9 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
         u0 = abs(W[_U, 0])
         if u0 > umax:
             umax = u0
-        vb = abs(ks[0] * (W[_U, 1] - W[_U, 0]) + cs[0] * (W[_V, 1] - W[_V, 0]))
-        if vb > vbmax:
-            vbmax = vb
+        vb = ks[0] * (W[_U, 1] - W[_U, 0]) + cs[0] * (W[_V, 1] - W[_V, 0])
+        if abs(vb) > vbmax:
+            vbmax = abs(vb)
         imb = abs(S[_EIN] - ek - S[_EVIS] - S[_EISO] - es)
         if imb > imb_max:
             imb_max = imb
@@ -309,9 +309,9 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
         if store:
             for j in range(n):
                 U[k, j] = W[_U, j]
-                V[k, j] = W[_V, j]
                 A[k, j] = W[_A, j] + ag1
             F[k] = S[_FC]
+            VB[k] = vb
             E[k, 0] = S[_EIN]
             E[k, 1] = ek
             E[k, 2] = S[_EVIS]
@@ -358,7 +358,7 @@ def batch(code, P, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, to
         hi = (runs * (b + 1)) // n_blocks
         for r in range(lo, hi):
             res = integrate(code, P[r], count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol,
-                            max_iter, max_levels, False, W, sc, st, sc_save, S, U, U, U, F, E, it, it,
+                            max_iter, max_levels, False, W, sc, st, sc_save, S, U, F, U, F, E, it, it,
                             drift[r], acc[r], out[r])
             status[r] = res[0]
 
@@ -541,11 +541,11 @@ def time_history(
     p = iso.packed()
     name, ag, h = _ground(record, dt)
     n, ndof = ag.size, m.size
-    U = np.zeros((n, ndof))
-    V = np.zeros((n, ndof))
-    A = np.zeros((n, ndof))
-    F = np.zeros(n)
-    E = np.zeros((n, len(_energy.TERMS)))
+    U = np.empty((n, ndof))
+    A = np.empty((n, ndof))
+    F = np.empty(n)
+    VB = np.empty(n)
+    E = np.empty((n, len(_energy.TERMS)))
     iters = np.zeros(n, dtype=np.int64)
     levels = np.zeros(n, dtype=np.int64)
     W, sc, st, sc_save, S = work_arrays(ndof, spec.state_size)
@@ -554,32 +554,30 @@ def time_history(
     out = np.zeros(N_OUT)
     status, k = integrate(spec.code, p, float(iso.count), float(iso.length_scale), m, ks, cs, cg, hts,
                           np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, True,
-                          W, sc, st, sc_save, S, U, V, A, F, E, iters, levels, drift_pk, acc_pk, out)
+                          W, sc, st, sc_save, S, U, VB, A, F, E, iters, levels, drift_pk, acc_pk, out)
     if status != 0:
         raise ConvergenceError(
             f"record {name!r}: the step to t = {k * h:.6g} s (step {k}) failed even in "
             f"{2 ** lv} substeps: {STATUS_MESSAGES.get(int(status), f'status {status}')}; state at "
-            f"t = {(k - 1) * h:.6g} s: isolator displacement {U[k - 1, 0]:.6g} m, velocity "
-            f"{V[k - 1, 0]:.6g} m/s, force {F[k - 1]:.6g} kN; law {spec.name!r} with parameters "
+            f"t = {(k - 1) * h:.6g} s: isolator displacement {U[k - 1, 0]:.6g} m, force "
+            f"{F[k - 1]:.6g} kN, base shear {VB[k - 1]:.6g} kN; law {spec.name!r} with parameters "
             f"{spec.as_dict(p)}, {iso.count} bearings, length_scale {iso.length_scale:g}"
         )
     energy = _energy.as_dict(E)
-    floors = U[:, 1:]
-    drift = np.diff(U, axis=1)
-    vb = ks[0] * (U[:, 1] - U[:, 0]) + cs[0] * (V[:, 1] - V[:, 0])
+    drift = U[:, 1:] - U[:, :-1]
     return Response(
         record=name,
         time=np.arange(n) * h,
-        isolator_disp=U[:, 0].copy(),
+        isolator_disp=U[:, 0],
         isolator_force=F,
-        floor_disp=np.ascontiguousarray(floors),
+        floor_disp=U[:, 1:],
         drift=drift,
         drift_ratio=drift / hts,
-        floor_accel_abs=np.ascontiguousarray(A[:, 1:]),
-        base_accel_abs=A[:, 0].copy(),
-        base_shear=vb,
+        floor_accel_abs=A[:, 1:],
+        base_accel_abs=A[:, 0],
+        base_shear=VB,
         energy=energy,
-        energy_error=_energy.balance_error(energy),
+        energy_error=float(out[OUT_EERR]),
         newton_iterations=iters,
         subdivided_steps=np.flatnonzero(levels > 0),
     )
