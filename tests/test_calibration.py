@@ -289,7 +289,7 @@ def _iterations(path) -> int:
 
 
 def test_a_killed_and_resumed_calibration_ends_with_as_many_samples_as_an_uninterrupted_one(tmp_path):
-    steps = 1500
+    steps = 600
     script = tmp_path / "run.py"
     script.write_text(SCRIPT)
     env = {**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"}
@@ -300,7 +300,7 @@ def test_a_killed_and_resumed_calibration_ends_with_as_many_samples_as_an_uninte
     killed_at = 0
     while time.time() < deadline and proc.poll() is None:
         n = _iterations(ck) if ck.exists() else 0
-        if n >= 50:
+        if n >= 30:
             proc.send_signal(signal.SIGKILL)
             proc.wait()
             killed_at = _iterations(ck)
@@ -316,11 +316,16 @@ def test_a_killed_and_resumed_calibration_ends_with_as_many_samples_as_an_uninte
     resumed = emcee.backends.HDFBackend(str(ck), read_only=True)
     assert resumed.iteration == steps
     assert resumed.get_chain().shape == (steps, 16, 6)
-    # an uninterrupted run stores exactly as many samples
+    # an uninterrupted run (same script, in this process) stores exactly as many samples
     ck2 = tmp_path / "straight.h5"
-    out2 = subprocess.run([sys.executable, str(script), str(ck2), str(steps)], env=env,
-                          capture_output=True, text=True, timeout=300)
-    assert out2.returncode == 0, out2.stderr[-2000:]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sys_argv = sys.argv
+        try:
+            sys.argv = ["run.py", str(ck2), str(steps)]
+            exec(compile(SCRIPT, "run.py", "exec"), {"__name__": "__main__"})
+        finally:
+            sys.argv = sys_argv
     straight = emcee.backends.HDFBackend(str(ck2), read_only=True)
     assert straight.get_chain().shape == resumed.get_chain().shape
     # the samples stored before the kill are kept, not redrawn

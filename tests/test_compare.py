@@ -5,9 +5,6 @@ the ASCE 7-22 17.8.4 rules flag what they should."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 import warnings
 
 import numpy as np
@@ -119,24 +116,25 @@ def test_compare_needs_two_calibrations_of_the_same_test(cals):
         compare([cals["plasticity"]])
 
 
-def test_cli_calibrate_and_compare_print_the_documented_json(tmp_path):
-    env = {**os.environ}
-    cmd = [sys.executable, "-m", "rrfrei.cli"]
-    out = subprocess.run(cmd + ["calibrate", "protocol1", "--law", "linear", "--steps", "40", "--walkers",
-                                "8", "--holdout", "protocol2", "--out", str(tmp_path / "c"), "--json"],
-                         capture_output=True, text=True, env=env, timeout=600)
-    assert out.returncode == 0, out.stderr[-2000:]
-    res = json.loads(out.stdout.strip().splitlines()[-1])
+def test_cli_calibrate_and_compare_print_the_documented_json(tmp_path, capsys):
+    """In-process through rrfrei.cli.main (the subprocess behaviour is covered by test_cli.py)."""
+    from rrfrei.cli import main
+
+    rc = main(["calibrate", "protocol1", "--law", "linear", "--steps", "40", "--walkers", "8",
+               "--holdout", "protocol2", "--out", str(tmp_path / "c"), "--json"])
+    out = capsys.readouterr().out
+    assert rc == 0
+    res = json.loads(out.strip().splitlines()[-1])
     assert set(res) == {"law", "map", "mean", "ci95", "sigma", "elpd_loo", "nrmse", "coverage", "converged",
                         "holdout"}
     assert set(res["holdout"]["protocol2"]) == {"nrmse", "coverage"}
     for f in ("posterior.nc", "summary.csv", "pair.png", "loop.png", "energy_per_cycle.png",
               "cumulative_energy.png", "holdout.png"):
         assert (tmp_path / "c" / f).exists(), f
-    out = subprocess.run(cmd + ["compare", "protocol1", "--laws", "linear,plasticity", "--steps", "30",
-                                "--walkers", "16", "--out", str(tmp_path / "k"), "--json"],
-                         capture_output=True, text=True, env=env, timeout=600)
-    assert out.returncode == 0, out.stderr[-2000:]
-    res = json.loads(out.stdout.strip().splitlines()[-1])
+    rc = main(["compare", "protocol1", "--laws", "linear,plasticity", "--steps", "30", "--walkers", "16",
+               "--out", str(tmp_path / "k"), "--json"])
+    out = capsys.readouterr().out
+    assert rc == 0
+    res = json.loads(out.strip().splitlines()[-1])
     assert res["best"] == "plasticity" and set(res["table"]) == {"linear", "plasticity"}
     assert (tmp_path / "k" / "compare.png").exists()
