@@ -45,12 +45,12 @@ def record() -> ground_motions.Record:
     return ground_motions.Record(r.name, r.dt, r.accel[: N_STEPS + 1], r.meta)
 
 
-def best(fn, repeat: int) -> float:
+def best(fn, repeat: int, clock=time.perf_counter) -> float:
     times = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = clock()
         fn()
-        times.append(time.perf_counter() - t0)
+        times.append(clock() - t0)
     return min(times)
 
 
@@ -82,6 +82,7 @@ def main() -> None:
     # ---- one analysis, same run, same steps
     ours = structures.time_history(bld, rec)  # compile / load from cache
     t_ours = best(lambda: structures.time_history(bld, rec), 20)
+    cpu_ours = best(lambda: structures.time_history(bld, rec), 20, time.process_time)
     peer = shear_building_one_call(ops, bld, rec.accel, rec.dt)
     err = np.max(np.abs(peer[:, 0] - ours.isolator_disp[1:])) / np.max(np.abs(peer[:, 0]))
     assert err < 1e-8, err
@@ -90,6 +91,7 @@ def main() -> None:
         shear_building_one_call(ops, bld, rec.accel, rec.dt)
 
     t_os = best(opensees_total, 3)
+    cpu_os = best(opensees_total, 3, time.process_time)
 
     # ---- batch throughput
     rng = np.random.default_rng(0)
@@ -118,10 +120,15 @@ Five-story example building on `bouc_wen` (17 bearings, length_scale 3), {N_STEP
 Landers/Lucerne (dt = {rec.dt:g} s), Newton + NormDispIncr 1e-12, average
 {ours.newton_iterations[1:].mean():.2f} Newton iterations per step.
 
-| analysis | time | ratio |
-|---|---|---|
-| openseespy, one `analyze({N_STEPS})` call + node recorder (build included) | {t_os * 1e3:.1f} ms | 1 |
-| `structures.time_history` (full histories, energy, validation) | {t_ours * 1e3:.2f} ms | **{ratio:.0f}x** |
+| analysis | wall time | ratio | CPU time | ratio |
+|---|---|---|---|---|
+| openseespy, one `analyze({N_STEPS})` call + node recorder (build included) | {t_os * 1e3:.1f} ms | 1 \
+| {cpu_os * 1e3:.1f} ms | 1 |
+| `structures.time_history` (full histories, energy, validation) | {t_ours * 1e3:.2f} ms | \
+**{ratio:.0f}x** | {cpu_ours * 1e3:.2f} ms | **{cpu_os / cpu_ours:.0f}x** |
+
+(best of 3 openseespy and 20 rrfrei runs; CPU time = `time.process_time`, less sensitive to a
+busy machine)
 
 Agreement of the isolator displacement with openseespy in this run: {err:.1e} relative.
 
