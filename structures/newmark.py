@@ -15,8 +15,12 @@ and the base (DOF 0).  Each step follows OpenSees' ``Newmark`` (displacement for
 3. u += du, v += g/(b h) du, a += du/(b h^2), isolator update; converged when ||du||_2 < tol;
 4. commit (the law's trial state becomes its committed state).
 
-The effective matrix is tridiagonal and solved in place (Thomas algorithm, no allocation).  A
-step whose Newton iteration fails (no convergence in ``max_iter``, a law status < 0 or a
+The effective matrix is tridiagonal.  Its superstructure part depends on the step size only, so
+it is eliminated once (from the roof down) and a Newton iteration costs one residual, one
+forward/back substitution and one division by the base pivot (which carries the isolator
+tangent); nothing is allocated in the time loop.  The base laws are called directly (same
+kernels as ``rrfrei.laws.kernel.step``, which serves augmented laws).  A step whose Newton
+iteration fails (no convergence in ``max_iter``, a law status < 0 or a
 non-finite force) is retried from the committed state in 2, 4, ... 2^max_levels equal substeps
 with the ground acceleration interpolated linearly.
 

@@ -324,3 +324,18 @@ def test_batch_returns_the_peaks_of_single_runs_and_flags_failures():
                                    rtol=1e-13)
     failed = structures.time_history_batch(b, rec, P[:2], max_iter=1, max_subdivisions=0)
     assert not failed["converged"].any() and np.isnan(failed["iso_disp_peak"]).all()
+
+
+def test_an_augmented_law_with_neutral_effect_is_its_base_law_and_a_real_effect_matters():
+    """Augmented laws run through ``rrfrei.laws.kernel.step`` (not the direct base-law calls)."""
+    rec = first_seconds("sanfernando", 6.0)
+    base = structures.time_history(on_law("three_story", "bouc_wen"), rec)
+    params = {**SPECIMEN_PARAMS["bouc_wen"], "deg_rate": 0.0}
+    neutral = on_law("three_story", "bouc_wen+degradation", params=params)
+    same = structures.time_history(neutral, rec)
+    np.testing.assert_allclose(same.isolator_disp, base.isolator_disp, rtol=0,
+                               atol=1e-12 * np.abs(base.isolator_disp).max())
+    degrading = neutral.with_isolator_params({**SPECIMEN_PARAMS["bouc_wen"], "deg_rate": 5.0})
+    other = structures.time_history(degrading, rec)
+    assert np.abs(other.isolator_disp - base.isolator_disp).max() > 1e-3 * np.abs(base.isolator_disp).max()
+    assert other.energy_error < 5e-3
