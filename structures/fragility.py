@@ -108,6 +108,9 @@ def fit_fragility(im, n, z, *, demand: str = "", limit: float = float("nan")) ->
     theta, beta = math.exp(best.x[0]), math.exp(best.x[1])
     # the full binomial log-likelihood, with the ln C(n, z) terms the optimisation drops
     log_comb = float(np.sum(special.gammaln(n_ + 1) - special.gammaln(z_ + 1) - special.gammaln(n_ - z_ + 1)))
-    if best.x[1] <= bounds[1][0] + 1e-6:
-        note = "stripes perfectly separated: beta hits its lower bound 0.001"
+    order = np.argsort(x)
+    frac = (z_ / n_)[order]
+    if np.all((frac == 0.0) | (frac == 1.0)) and np.all(np.diff(frac) >= 0):
+        # no stripe has a fraction strictly between 0 and 1: the likelihood grows as beta -> 0
+        note = "stripes perfectly separated (each all or none): beta is not identified (-> 0)"
     return Fragility(theta=theta, beta=beta, loglik=log_comb - float(best.fun), note=note, **base)

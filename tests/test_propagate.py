@@ -296,3 +296,34 @@ def test_percentile_error_decays_at_the_monte_carlo_rate(sdof_case):
     err = _percentile_errors(sdof_case, sizes, range(12))
     slope = np.polyfit(np.log(sizes), np.log([err[n] for n in sizes]), 1)[0]
     assert -0.8 < slope < -0.3, (slope, err)
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore:calibration of .* has NOT converged")  # 20 steps on purpose
+def test_cli_writes_the_table_and_figures_that_the_api_computes(tmp_path):
+    """`rrfrei propagate` on a real (short) calibration: same table as the API, figures, JSON summary."""
+    import json
+
+    from rrfrei.calibration import calibrate
+    from rrfrei.io import load_test
+
+    cal = calibrate(load_test("protocol1"), "bouc_wen", steps=20, walkers=32, progress=False, seed=0)
+    nc = cal.to_netcdf(tmp_path / "posterior.nc")
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "rrfrei.cli", "propagate", "--posterior", str(nc),
+            "--building", "five_story", "--records", "rinaldi,tabas", "--samples", "6",
+            "--scales", "0.5,1,2", "--seed", "3",
+            "--out", str(out), "--json", "--no-progress"]
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    proc = subprocess.run(argv, capture_output=True, text=True, cwd=ROOT, env=env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    body = json.loads(proc.stdout)
+    assert body["law"] == "bouc_wen" and body["samples"] == 6
+    assert body["limits"]["iso_disp_peak_m"] == pytest.approx(3.0 * cal.test.disp.max())
+    for name in ("responses.parquet", "responses.csv", "summary.csv", "variance_split.csv", "exceedance.csv",
+                 "fragility.csv", "fragility.png", "distribution_iso_disp_peak_m.png",
+                 "exceedance_drift_ratio_max.png"):
+        assert (out / name).stat().st_size > 0, name
+    api = propagate(nc, "five_story", ["rinaldi", "tabas"], n_samples=6, scales=(0.5, 1.0, 2.0), seed=3,
+                    progress=False)
+    pd.testing.assert_frame_equal(pd.read_parquet(out / "responses.parquet"), api.table)
