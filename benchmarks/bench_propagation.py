@@ -137,10 +137,10 @@ in all) on the 5-story example (`five_story`, {bld.isolator.law} isolators), sca
 | analyses per second | {n_runs / wall:.1f} |
 | time steps per second (all runs) | {args.samples * steps / wall:.3g} |
 | ours, per analysis (wall / analyses) | {1e3 * ours:.2f} ms |
-| openseespy, per analysis (same building and records, one `analyze` call, mean of {len(recs)}) | {1e3 * peer:.1f} ms |
+| openseespy, per analysis (one `analyze` call, mean of {len(recs)} records) | {1e3 * peer:.1f} ms |
 | **speed-up vs openseespy** | **{peer / ours:.0f}x** (target >= 50x) |
 | cold start, warm Numba cache: import / first call | {warm_import:.2f} s / {warm_first:.2f} s |
-| cold start, empty Numba cache: import / first call (compilation) | {cold_import:.2f} s / {cold_first:.2f} s |
+| cold start, empty Numba cache: import / first call | {cold_import:.2f} s / {cold_first:.2f} s |
 
 The openseespy time is single-threaded and ours uses every core, as each would be used; per core the
 ratio is {peer / ours / numba.get_num_threads():.0f}x.
