@@ -211,7 +211,8 @@ class ResponseSet:
         ax.set_xticks(range(1, len(names) + 1), names, rotation=30, ha="right")
         ax.set_xlabel("ground motion record")
         ax.set_ylabel(label(d))
-        ax.set_title(f"{self.law}: {len(self.draws)} posterior draws, scale {s:g} (whiskers 2.5-97.5 %)")
+        ax.set_title(f"{self.law}, {len(self.draws)} draws, scale {s:g}\n(box 25-75 %, whiskers 2.5-97.5 %)",
+                     fontsize=10)
         if d in self.limits:
             ax.axhline(self.limits[d], color="C3", ls="--", label=f"limit {self.limits[d]:g}")
             ax.legend()
