@@ -427,7 +427,7 @@ def step_gap(ctx: DemoContext, sec: Section) -> None:
                      "gap_calibration": e.calibration.gap, "systematic_calibration": e.calibration.systematic,
                      "gap_holdout": e.holdout.gap if e.holdout is not None else float("nan"),
                      "shrink_calibration": e.shrink_calibration, "shrink_holdout": e.shrink_holdout,
-                     "significant": bool(e.significant), "note": e.note})
+                     "significant": bool(e.significant), "note": e.note or "-"})
     ranking = _na_as_text(pd.DataFrame(rows), ("screen", "delta_holdout", "se_holdout", "gap_holdout",
                                                 "shrink_calibration", "shrink_holdout"))
     metrics = []

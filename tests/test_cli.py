@@ -40,6 +40,8 @@ def _files(root: Path) -> dict[str, Path]:
     bad_toml.write_text("story_masses = [1.0, \n")
     rubber_bad = root / "rubber_bad.csv"
     rubber_bad.write_text("time_s,stretch,stress_MPa\n0,1.0,0\n1,nan,0.1\n")
+    rubber_ok = root / "rubber_ok.csv"
+    rubber_ok.write_text("time_s,stretch,stress_MPa\n0,1.0,0\n1,1.1,0.1\n2,1.2,0.2\n3,1.1,0.05\n")
     params_bad = root / "params.json"
     params_bad.write_text("{not json")
     return {
@@ -48,6 +50,7 @@ def _files(root: Path) -> dict[str, Path]:
         "nc": garbage_nc,
         "toml": bad_toml,
         "rubber_bad": rubber_bad,
+        "rubber_ok": rubber_ok,
         "params_bad": params_bad,
         "out": root / "out",
         "p1": root / "protocol1.csv",
@@ -57,7 +60,7 @@ def _files(root: Path) -> dict[str, Path]:
 def _cases(f: dict[str, Path]) -> dict[str, tuple[list[str], str]]:
     """case id -> (argv, a word the one-line error must contain) for user errors (exit 2)."""
     out, missing, malformed, nc, toml = (str(f[k]) for k in ("out", "missing", "malformed", "nc", "toml"))
-    rubber_bad, params_bad = str(f["rubber_bad"]), str(f["params_bad"])
+    rubber_bad, rubber_ok, params_bad = str(f["rubber_bad"]), str(f["rubber_ok"]), str(f["params_bad"])
     p1 = str(f["p1"])  # a valid test: only the argument under test is wrong
     c = {
         # calibrate
@@ -99,7 +102,7 @@ def _cases(f: dict[str, Path]) -> dict[str, tuple[list[str], str]]:
     c.update({
         "rubber-fit/wrong-path": ([*RUBBER, "fit", missing, "--out", out], "no_such_dir"),
         "rubber-fit/malformed": ([*RUBBER, "fit", rubber_bad, "--out", out], "rubber_bad.csv"),
-        "rubber-fit/bad-bounds": ([*RUBBER, "fit", rubber_bad, "--bounds", missing, "--out", out],
+        "rubber-fit/bad-bounds": ([*RUBBER, "fit", rubber_ok, "--bounds", missing, "--out", out],
                                   "no_such_dir"),
         "rubber-predict/malformed-params": ([*RUBBER, "predict", "--params", params_bad, rubber_bad],
                                             "params.json"),
@@ -147,7 +150,8 @@ def test_every_command_help_shows_an_example(runs, name):
 def _dummy() -> dict[str, Path]:
     """Paths with the real file names (the ids and expected words do not depend on the folder)."""
     names = {"missing": "no_such_dir/p1.csv", "malformed": "malformed.csv", "nc": "posterior.nc",
-             "toml": "building.toml", "rubber_bad": "rubber_bad.csv", "params_bad": "params.json",
+             "toml": "building.toml", "rubber_bad": "rubber_bad.csv", "rubber_ok": "rubber_ok.csv",
+             "params_bad": "params.json",
              "out": "out", "p1": "protocol1.csv"}
     return {k: Path("/nonexistent") / v for k, v in names.items()}
 
