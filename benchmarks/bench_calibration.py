@@ -35,7 +35,7 @@ from _results import write_section  # noqa: E402
 import rrfrei  # noqa: E402
 from rrfrei.calibration import ConvergenceWarning, calibrate, setup_problem  # noqa: E402
 
-MAX_STEPS = 6000
+MAX_STEPS = 3000
 N_OPS = 20  # openseespy evaluations timed
 P = dict(k_init=1130.0, qd=3.1, alpha1=0.45, alpha2=-0.7, mu=1.55, eta=2.0, beta=1.2, gamma=0.65)
 

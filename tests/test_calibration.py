@@ -271,6 +271,7 @@ SCRIPT = textwrap.dedent("""
     from rrfrei.protocols import protocol1
     from rrfrei.simulate import simulate_force
     t, u = protocol1()
+    t, u = t[:600], u[:600]  # the first six cycles keep each step cheap
     f = simulate_force("plasticity", dict(k_init=3000.0, qd=1.5, alpha1=0.15, alpha2=0.0, mu=2.0), u)
     f = f + 0.1 * np.random.default_rng(0).standard_normal(f.size)
     cal = calibrate(ShearTest("k", t, u, f), "plasticity", walkers=16, steps=int(sys.argv[2]),

@@ -15,6 +15,10 @@ Identifiability (what the data of one cyclic test can and cannot fix):
   prior (not identifiable); it becomes identifiable only when the test shows stiffening.
   ``k_init`` is identifiable only when the elastic branch is sampled by several points; a sharp
   yield at a displacement smaller than the sampling step leaves only a lower bound.
+* ``bouc_wen`` (A = 1): the hysteretic force is ``qd z`` with ``|z| <= (beta + gamma)^(-1/eta)``,
+  so the loop height fixes only ``qd (beta + gamma)^(-1/eta)``: qd and beta + gamma lie on a ridge
+  (slow mixing, large tau).  Fix one of them (e.g. ``fixed={"gamma": ...}``, or beta + gamma = 1 by
+  a prior) to identify the rest; the recovery tests hold gamma at its true value.
 * ``elastomeric_x``: geometry (``d2``, ``tr``, ``n``, ``d1``, ``tc``) is fixed from the test's
   geometry; ``cd`` (viscous damping) is not sampled by default (optional, 0).
 * ``hdr``: the damage parameters ``c1``, ``c2``, ``c4`` and the residual fraction ``c3`` are
