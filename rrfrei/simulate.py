@@ -7,6 +7,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from rrfrei.laws import STATUS_MESSAGES, LawSpec, get
+from rrfrei.laws.dispatch import base_drive
 from rrfrei.laws.kernel import drive
 
 
@@ -79,7 +80,12 @@ def simulate_force(
     tangent = np.empty_like(u)
     sc = np.array(spec.initial_state, dtype=float)
     st = sc.copy()
-    status, idx = drive(spec.code, p, sc, st, u, t, use_time, int(substeps), force, tangent)
+    if spec.effects:
+        status, idx = drive(spec.code, p, sc, st, u, t, use_time, int(substeps), force, tangent)
+    else:  # base law: its own loop, without compiling the effect catalogue (cold start)
+        status, idx = base_drive(
+            int(spec.kernel_id), p, sc, st, u, t, use_time, int(substeps), force, tangent
+        )
     if status != 0:
         raise ValueError(
             f"law {spec.name!r} failed at sample {idx} (disp = {u[idx]:.6g} m): "
