@@ -15,10 +15,10 @@ Identifiability (what the data of one cyclic test can and cannot fix):
   prior (not identifiable); it becomes identifiable only when the test shows stiffening.
   ``k_init`` is identifiable only when the elastic branch is sampled by several points; a sharp
   yield at a displacement smaller than the sampling step leaves only a lower bound.
-* ``bouc_wen`` (A = 1): the hysteretic force is ``qd z`` with ``|z| <= (beta + gamma)^(-1/eta)``,
-  so the loop height fixes only ``qd (beta + gamma)^(-1/eta)``: qd and beta + gamma lie on a ridge
-  (slow mixing, large tau).  Fix one of them (e.g. ``fixed={"gamma": ...}``, or beta + gamma = 1 by
-  a prior) to identify the rest; the recovery tests hold gamma at its true value.
+* ``bouc_wen`` (A = 1): the force is exactly invariant under (qd, beta, gamma) ->
+  (c qd, c^eta beta, c^eta gamma), so the three can never be identified together (an unbounded
+  ridge).  The registry holds ``beta`` at 0.5 in calibration (``ParamSpec.hold``); the recovery
+  tests hold gamma at its true value instead (``fixed=``), which breaks the same ridge.
 * ``elastomeric_x``: geometry (``d2``, ``tr``, ``n``, ``d1``, ``tc``) is fixed from the test's
   geometry; ``cd`` (viscous damping) is not sampled by default (optional, 0).
 * ``hdr``: the damage parameters ``c1``, ``c2``, ``c4`` and the residual fraction ``c3`` are
@@ -67,36 +67,11 @@ def setup_problem(test: ShearTest, law: str | LawSpec, *, priors=None, noise: st
     spec = get(law)
     if noise not in NOISE_MODELS:
         raise ValueError(f"noise must be one of {', '.join(NOISE_MODELS)}, got {noise!r}")
-    fixed = dict(fixed or {})
-    for k in fixed:
-        spec.param(k)  # unknown names raise ValueError naming the law's parameters
-    override_names = set()
-    if isinstance(priors, Mapping):
-        override_names = {str(k) for k in priors}
-    all_fixed: dict[str, float] = {}
-    missing = []
-    for p in spec.params:
-        if p.name in fixed:
-            all_fixed[p.name] = float(fixed[p.name])
-        elif p.geometry and p.name in test.geometry:
-            all_fixed[p.name] = float(test.geometry[p.name])
-        elif p.geometry and not p.optional:
-            missing.append(p.name)
-        elif p.optional and p.name not in override_names:
-            all_fixed[p.name] = float(p.default)
-    if missing:
-        raise ValueError(
-            f"law {spec.name!r} needs the bearing geometry {', '.join(missing)} [m]; give it in a "
-            f"sidecar TOML next to {test.source or 'the test file'} ([geometry] table), via "
-            f"read_test(geometry=...) or calibrate(fixed=...)"
-        )
-    for k, v in all_fixed.items():
-        ps = spec.param(k)
-        if not (math.isfinite(v) and ps.lower <= v <= ps.upper):
-            raise ValueError(
-                f"law {spec.name!r}: fixed {k} = {v:g} {ps.unit} is outside [{ps.lower:g}, {ps.upper:g}]"
-            )
-    free = tuple(p.name for p in spec.params if p.name not in all_fixed)
+    override_names = {str(k) for k in priors} if isinstance(priors, Mapping) else set()
+    free, all_fixed = spec.resolve_fixed(
+        test.geometry, fixed, frozenset(override_names),
+        source=str(test.source or "the test file"),
+    )
     pri = resolve_priors(spec, free, np.asarray(test.force), np.asarray(test.disp), noise, priors)
     return Problem(spec, test, free, all_fixed, noise, dict(pri))
 

@@ -21,6 +21,12 @@ When du == 0 exactly nothing is recomputed: force and tangent are those of the p
 The result depends on the step size (implicit integration over each increment); see
 ``rrfrei.simulate_force(substeps=...)``.
 
+Identifiability: the force is exactly invariant under (qd, beta, gamma) -> (c qd, c^eta beta,
+c^eta gamma) for any c > 0 (z scales by 1/c, u_y by c, and the backward-Euler step with them), so
+one cyclic test can never fix all three.  Calibration therefore holds ``beta`` at 0.5 (``hold``
+in its ParamSpec) and samples gamma, which spans the loop shapes gamma/beta in (-1, 2]; give a
+prior for ``beta`` to sample it anyway (and expect a ridge).
+
 State (float64[5])::
 
     [0] u      trial (committed, in sc) shear displacement [m]
@@ -161,7 +167,7 @@ SPEC = register(
         + (
             ParamSpec("eta", "-", 0.1, 10.0, "Bouc-Wen exponent", Prior("uniform", 0.5, 5.0)),
             ParamSpec("beta", "-", 0.0, 5.0, "coefficient of the sign-dependent term",
-                      Prior("uniform", 0.0, 2.0)),
+                      Prior("uniform", 0.0, 2.0), hold=0.5),
             ParamSpec("gamma", "-", -5.0, 5.0, "coefficient of the constant term",
                       Prior("uniform", -1.0, 1.0)),
         ),

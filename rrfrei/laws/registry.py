@@ -132,7 +132,10 @@ class ParamSpec:
 
     ``lower``/``upper`` are physical bounds (inclusive); ``prior`` the default calibration prior;
     ``geometry`` marks parameters fixed from the bearing drawing (never sampled);
-    ``default`` is the value of an optional parameter when it is not given.
+    ``default`` is the value of an optional parameter when it is not given;
+    ``hold`` is a value at which calibration holds the parameter unless a prior for it is given,
+    used where the force is exactly invariant along a direction of parameter space (the reason is
+    stated in the law's docstring), so the posterior would otherwise be an unbounded ridge.
     """
 
     name: str
@@ -143,6 +146,7 @@ class ParamSpec:
     prior: Prior | None = None
     geometry: bool = False
     default: float | None = None
+    hold: float | None = None
 
     @property
     def optional(self) -> bool:
@@ -188,8 +192,60 @@ class LawSpec:
 
     @property
     def free_names(self) -> tuple[str, ...]:
-        """Parameters calibrated by default: neither geometry nor optional."""
-        return tuple(p.name for p in self.params if not p.geometry and not p.optional)
+        """Parameters calibrated by default: neither geometry, optional nor held."""
+        return tuple(
+            p.name for p in self.params if not p.geometry and not p.optional and p.hold is None
+        )
+
+    def resolve_fixed(
+        self,
+        geometry: Mapping[str, float] | None = None,
+        fixed: Mapping[str, float] | None = None,
+        sample: set[str] | frozenset[str] = frozenset(),
+        *,
+        source: str = "the test",
+    ) -> tuple[tuple[str, ...], dict[str, float]]:
+        """Split the parameters into sampled ones and fixed values, for calibration and fits.
+
+        Order of precedence: ``fixed`` (user values), then ``geometry`` for geometry parameters,
+        then, unless the parameter is named in ``sample``, the default of an optional parameter
+        and the ``hold`` value of a held one.  Returns ``(free names, fixed values)``; a geometry
+        parameter with neither a value nor a default raises ValueError naming it.
+        """
+        geometry = dict(geometry or {})
+        fixed = dict(fixed or {})
+        for k in fixed:
+            self.param(k)  # unknown names raise, listing the law's parameters
+        out: dict[str, float] = {}
+        missing = []
+        for p in self.params:
+            if p.name in fixed:
+                out[p.name] = float(fixed[p.name])
+            elif p.geometry and p.name in geometry:
+                out[p.name] = float(geometry[p.name])
+            elif p.name in sample:
+                continue
+            elif p.optional:
+                out[p.name] = float(p.default)
+            elif p.geometry:
+                missing.append(p.name)
+            elif p.hold is not None:
+                out[p.name] = float(p.hold)
+        if missing:
+            raise ValueError(
+                f"law {self.name!r} needs the bearing geometry {', '.join(missing)} [m] for "
+                f"{source}; give it in a sidecar TOML ([geometry] table), via "
+                "read_test(geometry=...) or as fixed values"
+            )
+        for k, v in out.items():
+            ps = self.param(k)
+            if not (math.isfinite(v) and ps.lower <= v <= ps.upper):
+                raise ValueError(
+                    f"law {self.name!r}: fixed {k} = {v:g} {ps.unit} is outside its bounds "
+                    f"[{ps.lower:g}, {ps.upper:g}] {ps.unit}"
+                )
+        free = tuple(p.name for p in self.params if p.name not in out)
+        return free, out
 
     @property
     def geometry_names(self) -> tuple[str, ...]:
