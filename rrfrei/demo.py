@@ -87,8 +87,8 @@ class DemoSettings:
     records: tuple[str, ...] | None = None  # None: every bundled record
     scales: tuple[float, ...] = (0.5, 1.0, 1.5)
     building: str = "five_story"
-    rubber_evals: int = 2000
-    rubber_restarts: int = 2
+    rubber_evals: int = 800
+    rubber_restarts: int = 1
     predict_draws: int = 200
 
     @classmethod
