@@ -58,12 +58,20 @@ def test_every_claimed_table_exists_and_holds_only_finite_numbers(quick_demo):
         for t in sec["tables"]:
             path = quick_demo["out"] / t["csv"]
             assert path.is_file(), f"{t['csv']} claimed but missing"
-            df = pd.read_csv(path)
+            # 'n/a' is the report's explicit "not defined" mark: keep it as text, so that only a
+            # real NaN/inf (or an empty cell) counts as a non-finite number
+            df = pd.read_csv(path, keep_default_na=False, na_values=["", "nan", "NaN", "NA"])
             assert len(df) == t["rows"] > 0, t["csv"]
             num = df.select_dtypes(include=[np.number])
             assert num.shape[1] > 0, f"{t['csv']} has no numeric column"
             bad = ~np.isfinite(num.to_numpy(dtype=float))
             assert not bad.any(), f"{t['csv']}: non-finite in {list(num.columns[bad.any(axis=0)])}"
+            for col in df.columns.difference(num.columns):  # mixed columns: numbers or 'n/a'
+                vals = pd.to_numeric(df[col].where(df[col] != "n/a"), errors="coerce")
+                numeric_like = pd.to_numeric(df[col], errors="coerce").notna() | (df[col] == "n/a")
+                if numeric_like.all() and (df[col] == "n/a").any():
+                    finite = np.isfinite(vals.dropna().to_numpy(dtype=float))
+                    assert finite.all(), f"{t['csv']}: non-finite in {col}"
             n_tables += 1
     assert n_tables >= len(STEPS)
 

@@ -238,21 +238,7 @@ class IsolatorModel(GapModel):
 
     # --- fitting ---------------------------------------------------------------------------
     def _free(self, data: ShearTest) -> tuple[tuple[str, ...], dict[str, float]]:
-        fixed: dict[str, float] = {}
-        for p in self.spec.params:
-            if p.name in self.fixed:
-                fixed[p.name] = float(self.fixed[p.name])
-            elif p.geometry:
-                if p.name in data.geometry:
-                    fixed[p.name] = float(data.geometry[p.name])
-                elif p.optional:
-                    fixed[p.name] = float(p.default)
-                else:
-                    raise ValueError(f"law {self.spec.name!r} needs the bearing geometry {p.name} [m]")
-            elif p.optional:
-                fixed[p.name] = float(p.default)
-        free = tuple(p.name for p in self.spec.params if p.name not in fixed)
-        return free, fixed
+        return self.spec.resolve_fixed(data.geometry, self.fixed, source=f"test {data.name!r}")
 
     def _base_start(self, data: ShearTest, free, fixed, seed: int) -> dict[str, float]:
         from rrfrei.calibration import setup_problem
