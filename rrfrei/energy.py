@@ -40,6 +40,8 @@ import math
 import numpy as np
 import pandas as pd
 
+from rrfrei._inputs import as_history
+
 __all__ = ["cycle_bounds", "dissipated_energy", "cycle_metrics", "METRIC_COLUMNS"]
 
 METRIC_COLUMNS = ("cycle", "start", "end", "energy", "d_pos", "d_neg", "f_pos", "f_neg", "k_eff",
@@ -48,18 +50,7 @@ METRIC_COLUMNS = ("cycle", "start", "end", "energy", "d_pos", "d_neg", "f_pos", 
 
 
 def _as_1d(values, name: str, min_len: int = 2) -> np.ndarray:
-    try:
-        arr = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a 1-D array of numbers, got {type(values).__name__}") from None
-    if arr.ndim != 1:
-        raise ValueError(f"{name} must be a 1-D array, got shape {arr.shape}")
-    if arr.size < min_len:
-        raise ValueError(f"{name} must have at least {min_len} values, got {arr.size}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise ValueError(f"{name} is not finite at index {bad[0]} (value {arr[bad[0]]})")
-    return arr
+    return as_history(values, name, min_len=min_len)
 
 
 def _pair(disp, force) -> tuple[np.ndarray, np.ndarray]:

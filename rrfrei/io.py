@@ -21,7 +21,6 @@ from __future__ import annotations
 import csv
 import math
 import re
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
@@ -30,6 +29,8 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from rrfrei._inputs import read_toml
 
 __all__ = ["ShearTest", "read_test", "load_test", "bundled_tests", "MIN_POINTS"]
 
@@ -361,12 +362,7 @@ def _sidecar(path: Path) -> Path | None:
 
 def _read_geometry_toml(path: Path) -> tuple[dict[str, float], float | None, dict]:
     """``[geometry]`` table (m) and optional ``vertical_load_kN``; other top-level keys -> meta."""
-    if not path.exists():
-        raise FileNotFoundError(2, "No such file", str(path))
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not valid TOML ({exc})") from None
+    data = read_toml(path)
     geo = data.get("geometry", {})
     if not isinstance(geo, dict):
         raise ValueError(f"{path}: [geometry] must be a table of numbers in m")

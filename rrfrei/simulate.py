@@ -6,25 +6,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from rrfrei._inputs import as_history
 from rrfrei.laws import STATUS_MESSAGES, LawSpec, get
 from rrfrei.laws.dispatch import base_drive
 from rrfrei.laws.kernel import drive
-
-
-def as_history(values, name: str, *, min_len: int = 1) -> np.ndarray:
-    """Validate a finite 1-D float array (``name`` is used in the error message)."""
-    try:
-        arr = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a 1-D array of numbers, got {type(values).__name__}") from None
-    if arr.ndim != 1:
-        raise ValueError(f"{name} must be a 1-D array, got shape {arr.shape}")
-    if arr.size < min_len:
-        raise ValueError(f"{name} must have at least {min_len} value(s), got {arr.size}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise ValueError(f"{name} is not finite at index {bad[0]} (value {arr[bad[0]]})")
-    return np.ascontiguousarray(arr)
 
 
 def simulate_force(

@@ -28,12 +28,12 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
+from rrfrei._inputs import read_toml
 from rrfrei.laws import LawSpec, Prior
 
 __all__ = ["data_scaled_prior", "resolve_priors", "unit_exponents", "noise_priors", "PriorSet"]
@@ -109,13 +109,7 @@ def _load_overrides(priors) -> dict[str, Prior]:
     if priors is None or (isinstance(priors, str) and priors == "registry"):
         return {}
     if isinstance(priors, (str, Path)):
-        path = Path(priors)
-        if not path.exists():
-            raise FileNotFoundError(2, "No such file", str(path))
-        try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{path}: not valid TOML ({exc})") from None
+        data = read_toml(priors)
         data = data.get("priors", data)
         return {k: _as_prior(k, v) for k, v in data.items()}
     if isinstance(priors, Mapping):
