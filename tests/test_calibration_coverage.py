@@ -10,6 +10,10 @@ bouc_wen; plasticity is bouc_wen's sharp-yield limit).
 
 from __future__ import annotations
 
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+
 import numpy as np
 import pytest
 from test_calibration import CHAIN, FIXED, NOT_IDENTIFIABLE, SIGMA, TRUTH, quiet_calibrate, synthetic
@@ -20,22 +24,42 @@ SEEDS = range(100, 120)
 NESTED = {("elastomeric_x", "bouc_wen"), ("plasticity", "bouc_wen")}
 
 
+def _one_seed(law: str, seed: int) -> tuple[int, int, float]:
+    """Calibrate one synthetic test: (interval hits, cases, predictive coverage)."""
+    w, s = CHAIN[law]
+    test = synthetic(law, seed)
+    cal = quiet_calibrate(test, law, walkers=w, steps=2 * s, seed=seed, fixed=FIXED[law])
+    lo, hi = np.quantile(cal.theta(), [0.025, 0.975], axis=0)
+    truth = {**TRUTH[law], "sigma": SIGMA}
+    hits = cases = 0
+    for n, a, b in zip(cal.sampled, lo, hi):
+        if n in NOT_IDENTIFIABLE[law]:
+            continue
+        cases += 1
+        hits += int(a <= truth[n] <= b)
+    return hits, cases, float(predict(cal, test, n=200, seed=seed).coverage)
+
+
+@pytest.fixture(scope="module")
+def pool():
+    """Two single-threaded worker processes: the walker batches of these short test chains are
+    too small for a multi-threaded likelihood to pay, so one seed per core is ~2x faster."""
+    os.environ["NUMBA_NUM_THREADS"] = "1"  # inherited by the spawned workers only
+    try:
+        with ProcessPoolExecutor(max_workers=os.cpu_count() or 2,
+                                 mp_context=multiprocessing.get_context("spawn")) as ex:
+            yield ex
+    finally:
+        os.environ.pop("NUMBA_NUM_THREADS", None)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("law", ["plasticity", "bouc_wen", "elastomeric_x", "hdr"])
-def test_95_percent_intervals_cover_the_truth_in_at_least_85_percent_of_cases(law):
-    w, s = CHAIN[law]
-    hits, cases, pred_cov = 0, 0, []
-    for seed in SEEDS:
-        test = synthetic(law, seed)
-        cal = quiet_calibrate(test, law, walkers=w, steps=2 * s, seed=seed, fixed=FIXED[law])
-        lo, hi = np.quantile(cal.theta(), [0.025, 0.975], axis=0)
-        truth = {**TRUTH[law], "sigma": SIGMA}
-        for n, a, b in zip(cal.sampled, lo, hi):
-            if n in NOT_IDENTIFIABLE[law]:
-                continue
-            cases += 1
-            hits += a <= truth[n] <= b
-        pred_cov.append(predict(cal, test, n=200, seed=seed).coverage)
+def test_95_percent_intervals_cover_the_truth_in_at_least_85_percent_of_cases(law, pool):
+    results = list(pool.map(_one_seed, [law] * len(SEEDS), list(SEEDS)))
+    hits = sum(r[0] for r in results)
+    cases = sum(r[1] for r in results)
+    pred_cov = [r[2] for r in results]
     assert hits / cases >= 0.85, f"{law}: 95 % intervals covered the truth in {hits}/{cases} cases"
     assert 0.90 <= min(pred_cov) and max(pred_cov) <= 0.99, f"{law}: predictive coverage {pred_cov}"
 
