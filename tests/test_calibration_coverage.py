@@ -40,17 +40,21 @@ def _one_seed(law: str, seed: int) -> tuple[int, int, float]:
     return hits, cases, float(predict(cal, test, n=200, seed=seed).coverage)
 
 
+def _single_threaded() -> None:
+    import numba
+
+    numba.set_num_threads(1)
+
+
 @pytest.fixture(scope="module")
 def pool():
-    """Two single-threaded worker processes: the walker batches of these short test chains are
-    too small for a multi-threaded likelihood to pay, so one seed per core is ~2x faster."""
-    os.environ["NUMBA_NUM_THREADS"] = "1"  # inherited by the spawned workers only
-    try:
-        with ProcessPoolExecutor(max_workers=os.cpu_count() or 2,
-                                 mp_context=multiprocessing.get_context("spawn")) as ex:
-            yield ex
-    finally:
-        os.environ.pop("NUMBA_NUM_THREADS", None)
+    """Worker processes with one Numba thread each: the walker batches of these short test chains
+    are too small for a multi-threaded likelihood to pay, so one seed per core is ~2x faster.
+    (Set inside the workers: changing NUMBA_NUM_THREADS in this process after its threads are
+    running would break later parallel calls here.)"""
+    with ProcessPoolExecutor(max_workers=os.cpu_count() or 2, initializer=_single_threaded,
+                             mp_context=multiprocessing.get_context("spawn")) as ex:
+        yield ex
 
 
 @pytest.mark.slow
