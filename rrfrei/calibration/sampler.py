@@ -213,6 +213,19 @@ def _tau(chain: np.ndarray) -> np.ndarray:
         return np.full(chain.shape[2], np.nan)
 
 
+RHAT_STOP = 1.04
+"""The chunked run also waits for the rank-normalised split R-hat (walkers as chains) to fall
+below this, a margin under the 1.05 that :func:`rrfrei.calibrate` requires of the stored draws."""
+
+
+def _rhat_max(chain: np.ndarray) -> float:
+    """Largest rank-normalised split R-hat over parameters of an emcee chain (steps, walkers, k)."""
+    import arviz as az
+
+    by_walker = np.swapaxes(chain, 0, 1)  # (walkers as chains, draws, k)
+    return float(max(az.rhat(by_walker[:, :, j]) for j in range(chain.shape[2])))
+
+
 def run_chain(
     problem: Problem,
     theta0: np.ndarray,
@@ -274,7 +287,8 @@ def run_chain(
             tau = _tau(chain[chain.shape[0] // 4:])
             tmax = float(np.max(tau))
             if (np.all(np.isfinite(tau)) and sampler.iteration >= TAU_FACTOR * tmax
-                    and abs(old - tmax) / tmax < 0.05):
+                    and abs(old - tmax) / tmax < 0.05
+                    and _rhat_max(chain[chain.shape[0] // 4:]) < RHAT_STOP):
                 break
             old = tmax
     chain = sampler.get_chain()
