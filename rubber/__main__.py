@@ -1,4 +1,5 @@
-"""Command line: ``python -m rubber fit|predict|cases|cards`` (user errors: one line on stderr, exit 2)."""
+"""Command line: ``python -m rubber fit|predict|cases|cards|gap`` (user errors: one line on stderr,
+exit 2)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ EXAMPLES = {
     "predict": "example: python -m rubber predict --params fitdir/params.json p1.csv --json",
     "cases": "example: python -m rubber cases p1.csv p2.csv --out study",
     "cards": "example: python -m rubber cards --params fitdir/params.json --out cards",
+    "gap": "example: python -m rubber gap p1.csv --holdout p2.csv --out gapdir --bounds auto --json",
 }
 
 
@@ -21,7 +23,7 @@ class UserError(Exception):
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m rubber", description="PRF (Yeoh + Bergstrom-Boyce) model: "
-                                "fit, predict, cross-protocol study, material cards (MPa, s).",
+                                "fit, predict, cross-protocol study, material cards, gap diagnosis (MPa, s).",
                                 epilog="\n".join(EXAMPLES.values()),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -47,6 +49,21 @@ def _parser() -> argparse.ArgumentParser:
     k = sub.add_parser("cards", help="Marc/Abaqus cards, curves, equivalent linear", epilog=EXAMPLES["cards"])
     k.add_argument("--params", required=True)
     k.add_argument("--out", required=True)
+    g = sub.add_parser("gap", help="which effect (Mullins, permanent set) closes the gap on held-out tests",
+                       description="Fit the PRF model to the calibration test, refit it with each effect, "
+                       "name an effect only if it lowers BIC by > 10 and lowers the held-out NRMSE.",
+                       epilog=EXAMPLES["gap"])
+    g.add_argument("test", help="calibration test (CSV/.mat)")
+    g.add_argument("--holdout", nargs="+", required=True, help="held-out tests (other protocols)")
+    g.add_argument("--out", required=True)
+    g.add_argument("--effects", nargs="+", default=None, help="effects to try (default all)")
+    g.add_argument("--bounds", default=None, help="'auto' or a JSON file {name: [lo, hi]}")
+    g.add_argument("--start", default=None, help="params.json of a previous fit to start from")
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--restarts", type=int, default=2)
+    g.add_argument("--max-evals", type=int, default=3000, help="CMA-ES budget per run (0: least squares "
+                   "from --start only)")
+    g.add_argument("--json", action="store_true")
     return p
 
 
@@ -85,12 +102,7 @@ def _run(a) -> int:
 
     if a.cmd == "fit":
         tests = [read_test(x) for x in a.tests]
-        bounds = a.bounds
-        if bounds not in (None, "auto"):
-            try:
-                bounds = json.loads(Path(bounds).read_text())
-            except (OSError, json.JSONDecodeError) as exc:
-                raise UserError(f"--bounds {a.bounds}: expected 'auto' or a JSON file ({exc})") from None
+        bounds = _read_bounds(a.bounds)
         r = fit(tests, bounds=bounds, seed=a.seed, restarts=a.restarts, max_evals=a.max_evals)
         out = Path(a.out)
         out.mkdir(parents=True, exist_ok=True)
@@ -121,7 +133,60 @@ def _run(a) -> int:
 
         write_cards(_read_params(a.params), a.out)
         print(f"wrote {a.out}/material.json, abaqus.inp, curves.csv, relaxation_creep.csv")
+    elif a.cmd == "gap":
+        _gap(a)
     return 0
+
+
+def _read_bounds(bounds):
+    if bounds in (None, "auto"):
+        return bounds
+    try:
+        return json.loads(Path(bounds).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise UserError(f"--bounds {bounds}: expected 'auto' or a JSON file ({exc})") from None
+
+
+def _gap(a) -> None:
+    from .gap import RubberModel, rank_effects
+    from .io import read_test
+
+    cal = read_test(a.test)
+    hos = [read_test(x) for x in a.holdout]
+    start = _read_params(a.start) if a.start else None
+    model = RubberModel(bounds=_read_bounds(a.bounds), start=start, restarts=a.restarts,
+                        max_evals=a.max_evals)
+    rep = rank_effects(model, cal, hos, effects=a.effects, seed=a.seed)
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "gap.md").write_text(rep.table() + "\n")
+    _gap_figure(rep, [cal, *hos], out / "gap.png")
+    print(json.dumps(rep.as_dict()) if a.json else rep.table())
+
+
+def _gap_figure(rep, tests, path: Path) -> None:
+    """Baseline vs the best augmented fit (lowest held-out NRMSE) on calibration and held-out tests."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    base = rep.fits["prf"]
+    best = rep.rows[0] if rep.rows else None
+    fig, axes = plt.subplots(1, len(tests), figsize=(5 * len(tests), 4), squeeze=False)
+    for i, (ax, t) in enumerate(zip(axes[0], tests)):
+        ax.plot(t.stretch, t.stress, "k.", ms=2, label="data")
+        ax.plot(t.stretch, base.stress(t), "b-", lw=1, label="prf (baseline)")
+        if best is not None:
+            tag = "" if best.accepted else " (not accepted)"
+            ax.plot(t.stretch, rep.fits[best.model].stress(t), "r-", lw=1, label=best.model + tag)
+        ax.set(xlabel="stretch [-]", ylabel="nominal stress [MPa]",
+               title=("calibration: " if i == 0 else "held out: ") + t.name)
+        ax.legend()
+    fig.suptitle(f"diagnosis: {rep.diagnosis}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def _cases_figure(r, tests, path: Path) -> None:
