@@ -2,6 +2,8 @@
 
 Layers: Numba kernels (``integrate``) -> frozen model dataclasses and ``simulate`` (``prf``) ->
 protocols, test I/O, CMA-ES ``fit``, the cross-protocol study and material cards -> ``python -m rubber``.
+The gap diagnosis (``rubber.gap``: ``RubberModel``, ``rank_effects``) is exported lazily, since it
+imports the ``rrfrei.gap`` engine.
 """
 
 from .fit import FitResult, fit, objective
@@ -25,4 +27,14 @@ __all__ = [
     "PARAM_NAMES", "BBChain", "NeoHookean", "PRFModel", "PRFParams", "SimResult", "Yeoh",
     "equilibrium_stress", "instantaneous_stress", "simulate", "protocol1", "protocol2",
     "BOX", "PRESETS", "cases", "Test", "read_test", "FitResult", "fit", "objective",
+    "EFFECTS", "RubberModel", "RubberFit", "RubberGapReport", "augmented_stress", "rank_effects",
 ]
+_GAP = ("EFFECTS", "RubberModel", "RubberFit", "RubberGapReport", "augmented_stress", "rank_effects")
+
+
+def __getattr__(name: str):
+    if name in _GAP:
+        from . import gap
+
+        return getattr(gap, name)
+    raise AttributeError(f"module 'rubber' has no attribute {name!r}")

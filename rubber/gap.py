@@ -426,9 +426,8 @@ def _from_unit(effect: str, i: int, x: float) -> float:
     ef = EFFECTS[effect]
     lo, hi = ef.bounds[i]
     x = min(max(float(x), 0.0), 1.0)
-    if ef.log[i]:
-        return float(math.exp(math.log(lo) + x * (math.log(hi) - math.log(lo))))
-    return float(lo + x * (hi - lo))
+    v = math.exp(math.log(lo) + x * (math.log(hi) - math.log(lo))) if ef.log[i] else lo + x * (hi - lo)
+    return float(min(max(v, lo), hi))  # exp(log(.)) may round past a bound
 
 
 # --- ranking ---------------------------------------------------------------------------------
