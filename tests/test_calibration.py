@@ -260,6 +260,52 @@ def test_a_short_chain_warns_plainly_that_it_has_not_converged():
 
 
 # ---------------------------------------------------------------------------------------------
+# initial ensemble: the Laplace approximation at the optimum
+# ---------------------------------------------------------------------------------------------
+def _linear_problem(noise: str):
+    """A linear spring F = k u on protocol 1 with known noise; its posterior of k is Gaussian."""
+    t, u = protocol1()
+    f = 2500.0 * u + 0.1 * np.random.default_rng(3).standard_normal(u.size)
+    return setup_problem(ShearTest("linear", t, u, f), "linear", noise=noise), u
+
+
+@pytest.mark.parametrize("noise, rho", [("iid", None), ("ar1", 0.6)])
+def test_the_initial_ensemble_covariance_is_the_closed_form_posterior_of_a_linear_spring(noise, rho):
+    """For F = k u with Gaussian noise, Var(k | data) = sigma^2 / sum(w_t^2), w the whitened
+    displacement (w_0 = sqrt(1 - rho^2) u_0, w_t = u_t - rho u_{t-1}); in the sampler's unit-cube
+    coordinate z (k = k(z)) the precision is that times (dk/dz)^2, plus the stated ridge."""
+    from rrfrei.calibration.sampler import LAPLACE_RIDGE, _Cube, laplace_cov
+
+    pb, u = _linear_problem(noise)
+    k_hat, sigma = 2500.0, 0.1
+    theta0 = np.array([k_hat, sigma] + ([rho] if rho is not None else []))
+    cube = _Cube(pb)
+    z0 = cube.to_z(np.array([k_hat]))[0, 0]
+    dkdz = (cube.to_x(np.array([[z0 + 1e-7]]))[0, 0] - cube.to_x(np.array([[z0 - 1e-7]]))[0, 0]) / 2e-7
+    r = 0.0 if rho is None else rho
+    w = np.concatenate([[np.sqrt(1 - r * r) * u[0]], u[1:] - r * u[:-1]])
+    precision = dkdz**2 * np.sum(w * w) / sigma**2 + 1.0 / LAPLACE_RIDGE**2
+    cov = laplace_cov(pb, theta0)
+    assert cov.shape == (1, 1)
+    assert cov[0, 0] == pytest.approx(1.0 / precision, rel=1e-4)
+
+
+def test_the_initial_walkers_spread_like_the_posterior_not_like_a_point():
+    """Drawn walkers of the linear spring: sd of k within 5 % of the closed-form posterior sd
+    (4000 walkers: the sd estimate itself scatters by ~1 %), sigma within its 1/sqrt(2n) spread."""
+    from rrfrei.calibration.sampler import _ball
+
+    pb, u = _linear_problem("iid")
+    theta0 = np.array([2500.0, 0.1])
+    walkers = _ball(pb, theta0, 4000, np.random.default_rng(0))
+    sd_k = 0.1 / np.sqrt(np.sum(u * u))
+    assert np.std(walkers[:, 0]) == pytest.approx(sd_k, rel=0.05)
+    assert np.mean(walkers[:, 0]) == pytest.approx(2500.0, abs=4 * sd_k / np.sqrt(4000))
+    assert np.std(walkers[:, 1]) == pytest.approx(0.1 / np.sqrt(2 * u.size), rel=0.05)
+    assert np.all(np.isfinite(pb.log_prob(walkers)))
+
+
+# ---------------------------------------------------------------------------------------------
 # checkpoint: kill and resume
 # ---------------------------------------------------------------------------------------------
 SCRIPT = textwrap.dedent("""

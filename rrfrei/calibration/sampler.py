@@ -5,9 +5,10 @@
    parameters profiled out (their maximum-likelihood values given the residuals), starting from
    the best of a batch of prior draws.  The result is the starting point, not the reported MAP
    alone: the MAP reported is the best of the optimum and every posterior sample.
-2. :func:`run_chain` puts the walkers in a small ball around it and runs ``emcee`` with a
-   differential-evolution move mixture (ter Braak 2006; Nelson et al. 2014), which copes with the
-   strongly correlated parameters of hysteresis laws better than the stretch move.  With
+2. :func:`run_chain` draws the walkers from the Laplace approximation there (:func:`_ball`) and
+   runs ``emcee`` with a differential-evolution move mixture (ter Braak 2006; Nelson et al.
+   2014), which copes with the strongly correlated parameters of hysteresis laws better than the
+   stretch move.  With
    ``steps=None`` it runs in chunks until the chain is at least 50 integrated autocorrelation times
    long and the estimate of tau changed by less than 5 % over the last chunk (Foreman-Mackey et
    al. 2013, emcee docs "Saving & monitoring progress"), up to ``max_steps``.
@@ -178,20 +179,79 @@ class ChainResult:
     seconds: float
 
 
+LAPLACE_STEP = 1e-6
+"""Forward-difference step of the Jacobian of the forces in unit-cube coordinates."""
+LAPLACE_RIDGE = 0.1
+"""Prior scale (unit-cube units) added to the Laplace precision: one tenth of a prior range in
+directions the data do not fix (non-identifiable parameters), so the start never exceeds it."""
+
+
+def laplace_cov(problem: Problem, theta0: np.ndarray) -> np.ndarray | None:
+    """Laplace covariance of the free law parameters at ``theta0`` in unit-cube coordinates.
+
+    Gauss-Newton: ``Sigma = (J_w^T J_w + I / LAPLACE_RIDGE^2)^-1`` with ``J_w`` the Jacobian of
+    the *whitened* residuals (divided by sigma; for AR(1) noise the innovations
+    ``(r_t - rho r_{t-1}) / sigma`` and ``sqrt(1 - rho^2) r_0 / sigma``, the densities of
+    :func:`.likelihood.pointwise_from_residuals`), by forward differences evaluated as one batch.
+    None if a perturbed parameter set fails or the result is not finite.
+    """
+    k = len(problem.free)
+    cube = _Cube(problem)
+    z0 = cube.to_z(theta0[:k])[0]
+    h = np.where(z0 + LAPLACE_STEP <= 1.0, LAPLACE_STEP, -LAPLACE_STEP)
+    Z = np.repeat(z0[None, :], k + 1, axis=0)
+    Z[1:] += np.diag(h)
+    pad = np.ones((k + 1, problem.ndim - k))
+    F, status = problem.forces(problem.full_params(np.column_stack([cube.to_x(Z), pad])))
+    if np.any(status != 0) or not np.all(np.isfinite(F)):
+        return None
+    J = ((F[1:] - F[0]) / h[:, None]).T  # (points, k)
+    sigma, rho = problem.noise_params(theta0[None, :])
+    s = float(sigma[0])
+    if rho is None:
+        Jw = J / s
+    else:
+        r = float(rho[0])
+        Jw = np.vstack([J[:1] * math.sqrt(max(1.0 - r * r, 0.0)), J[1:] - r * J[:-1]]) / s
+    H = Jw.T @ Jw + np.eye(k) / LAPLACE_RIDGE**2
+    try:
+        cov = np.linalg.inv(H)
+        np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        return None
+    return cov if np.all(np.isfinite(cov)) else None
+
+
 def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generator) -> np.ndarray:
-    """Walkers near ``theta0``, every one with finite log posterior."""
+    """Walkers drawn from the Laplace approximation at ``theta0``, each with finite log posterior.
+
+    Law parameters: ``N(z0, Sigma)`` in unit-cube coordinates (:func:`laplace_cov`); noise: sigma
+    with its large-sample relative sd ``1/sqrt(2n)``, rho with sd ``sqrt((1 - rho^2)/n)``.  Starting
+    at the posterior's own scale and shape spares the ensemble the slow expansion from a point
+    (a differential-evolution proposal is as large as the ensemble's spread), which otherwise
+    dominates the autocorrelation time measured over the run.  Draws outside the prior box or with
+    -inf log posterior are redrawn with the spread halved; without a usable Jacobian the spread is
+    a ball of radius 1e-3 in the unit cube.
+    """
     cube = _Cube(problem)
     k = len(problem.free)
+    n = problem.n_points
+    cov = laplace_cov(problem, theta0) if k else None
+    chol = np.linalg.cholesky(cov) if cov is not None else 1e-3 * np.eye(k)
+    z = cube.to_z(theta0[:k])[0] if k else np.zeros(0)
+    sd_noise = np.array([1.0 / math.sqrt(2.0 * n)] + ([1.0] if problem.noise == "ar1" else []))
     out = np.empty((nw, problem.ndim))
     filled = 0
-    scale = 1e-3
+    scale = 1.0
     for _ in range(50):
-        z = cube.to_z(theta0[:k])[0] if k else np.zeros(0)
-        Z = np.clip(z + scale * rng.standard_normal((nw, k)), 0.0, 1.0)
+        Z = z + scale * rng.standard_normal((nw, k)) @ chol.T
+        inside = np.all((Z >= 0.0) & (Z <= 1.0), axis=1)
         X = cube.to_x(Z) if k else np.zeros((nw, 0))
-        # keep the optimum's own value where the cube clips (parameter at a bound)
-        noise = theta0[k:] * (1.0 + scale * rng.standard_normal((nw, problem.ndim - k)))
-        cand = np.column_stack([X, noise])
+        noise = theta0[k:] * (1.0 + scale * sd_noise * rng.standard_normal((nw, problem.ndim - k)))
+        if problem.noise == "ar1":
+            r0 = theta0[k + 1]
+            noise[:, 1] = r0 + scale * math.sqrt(max(1.0 - r0 * r0, 1e-6) / n) * rng.standard_normal(nw)
+        cand = np.column_stack([X, noise])[inside]
         lp = problem.log_prob(cand)
         good = cand[np.isfinite(lp)]
         take = min(good.shape[0], nw - filled)
