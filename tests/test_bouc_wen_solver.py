@@ -1,5 +1,5 @@
-"""The fast Bouc-Wen history solver (``bouc_wen.drive_fast``, opt-in) against the plain OpenSees
-iteration (``bouc_wen.drive``, :func:`rrfrei.laws.bouc_wen.step` at every step): same forces, same
+"""The fast Bouc-Wen history solver (``bouc_wen.drive``) against the plain OpenSees iteration
+(``bouc_wen.drive_exact``, :func:`rrfrei.laws.bouc_wen.step` at every step): same forces, same
 failures, and the fast path is really taken where the guard allows it and refused where it must
 be."""
 
@@ -58,8 +58,8 @@ BASE = dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.02, mu=2.0, eta=1.37, bet
 
 def test_fast_path_is_taken_and_matches_exact_iteration():
     u = _hist()
-    s0, F0, T0, sc0, _ = _run(bw.drive, BASE, u)
-    s1, F1, T1, sc1, _ = _run(bw.drive_fast, BASE, u)
+    s0, F0, T0, sc0, _ = _run(bw.drive_exact, BASE, u)
+    s1, F1, T1, sc1, _ = _run(bw.drive, BASE, u)
     assert s0 == s1 == (0, -1)
     assert np.max(abs(F1 - F0)) <= 1e-13 * np.max(abs(F0))
     assert np.max(abs(T1 - T0)) <= 1e-12 * np.max(abs(T0))
@@ -70,8 +70,8 @@ def test_fast_path_is_taken_and_matches_exact_iteration():
 def test_integer_eta_uses_step_only():
     u = _hist(400)
     P = SPEC.pack({**BASE, "eta": 1.0})
-    s0, F0, *_ = _run(bw.drive, {**BASE, "eta": 1.0}, u)
-    s1, F1, *_ = _run(bw.drive_fast, {**BASE, "eta": 1.0}, u)
+    s0, F0, *_ = _run(bw.drive_exact, {**BASE, "eta": 1.0}, u)
+    s1, F1, *_ = _run(bw.drive, {**BASE, "eta": 1.0}, u)
     assert s0 == s1 and np.array_equal(F0, F1)
     assert P[5] == 1.0
 
@@ -96,8 +96,8 @@ def test_wild_parameters_fall_back_and_fail_at_the_same_sample():
     # large eta and gamma < 0 with big steps: OpenSees' Newton fails; both drivers must agree
     p = dict(k_init=1e4, qd=0.05, alpha1=0.0, alpha2=0.0, mu=2.0, eta=5.3, beta=0.1, gamma=-0.05)
     u = _hist(600, amp=0.05)
-    s0, F0, *_ = _run(bw.drive, p, u)
-    s1, F1, *_ = _run(bw.drive_fast, p, u)
+    s0, F0, *_ = _run(bw.drive_exact, p, u)
+    s1, F1, *_ = _run(bw.drive, p, u)
     assert s0 == s1
     m = np.isfinite(F0)
     assert np.array_equal(m, np.isfinite(F1))
@@ -118,8 +118,8 @@ def test_random_fast_equals_exact(eta, beta, gamma, qd, k_init, alpha1, amp, n, 
     rng = np.random.default_rng(seed)
     u = np.cumsum(rng.normal(0.0, amp / np.sqrt(n), n)) + amp * np.sin(np.linspace(0, 6, n))
     u[rng.random(n) < 0.05] = u[0]  # repeated values (du == 0)
-    s0, F0, T0, sc0, st0 = _run(bw.drive, p, u, substeps)
-    s1, F1, T1, sc1, st1 = _run(bw.drive_fast, p, u, substeps)
+    s0, F0, T0, sc0, st0 = _run(bw.drive_exact, p, u, substeps)
+    s1, F1, T1, sc1, st1 = _run(bw.drive, p, u, substeps)
     assert s0 == s1
     m = np.isfinite(F0)
     assert np.array_equal(m, np.isfinite(F1))

@@ -51,14 +51,19 @@ def test_kernel_failure_names_sample_status_and_state():
 
 @pytest.mark.parametrize("law, p", [
     ("bouc_wen", {**BW, "eta": 1.6}),
+    ("bouc_wen", {**BW, "eta": 2.0}),
     ("elastomeric_x", dict(fy=1.0, alpha=0.2, gr=500.0, d2=0.08, tr=0.002, n=15.0, cd=4.0)),
     ("hdr", dict(a1=60.0, a2=2e4, a3=3e7, b1=0.8, b2=300.0, b3=150.0, c1=1e3, c2=2e3, c3=0.4, c4=20.0)),
     ("plasticity", dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.05, mu=2.0)),
     ("linear", dict(k=100.0, c=3.0)),
 ])
 def test_whole_history_driver_equals_step_by_step_dispatch(law, p):
-    """The per-law drive loop (fast path) gives bit-identical results to the per-step dispatch
-    used for augmented laws, with time, velocity and substeps."""
+    """The per-law drive loop (fast path) gives the results of the per-step dispatch used for
+    augmented laws and time histories, with time, velocity and substeps: bit-identical, except
+    Bouc-Wen with a non-integer eta, whose history driver solves OpenSees' implicit equation
+    with its own guarded solver (``rrfrei.laws.bouc_wen``, "Fast solver") and so lands on the
+    same root to rounding, not to the bit (tests/test_bouc_wen_solver.py holds it to
+    drive_exact)."""
     from rrfrei.laws.kernel import step
 
     spec = get(law)
@@ -66,6 +71,8 @@ def test_whole_history_driver_equals_step_by_step_dispatch(law, p):
     t = np.linspace(0.0, 4.0, 81)
     u = 0.02 * np.sin(2 * np.pi * t / 2.0) + 0.002 * np.cos(7 * t)
     f, k = rrfrei.simulate_force(law, p, u, time=t, substeps=3, return_tangent=True)
+    exact = law != "bouc_wen" or float(p["eta"]).is_integer()
+    scale = float(np.max(np.abs(f)))
     sc = np.array(spec.initial_state)
     st = sc.copy()
     u_prev, t_prev = 0.0, t[0]
@@ -78,12 +85,16 @@ def test_whole_history_driver_equals_step_by_step_dispatch(law, p):
             fj, kj, status = step(spec.code, packed, sc, uj, v, dt_eff, st)
             assert status == 0
             sc[:] = st
-        assert fj == f[i] and kj == k[i]
+        if exact:
+            assert fj == f[i] and kj == k[i]
+        else:
+            assert fj == pytest.approx(f[i], rel=1e-13, abs=1e-13 * scale)
+            assert kj == pytest.approx(k[i], rel=1e-13, abs=1e-13 * packed[0])
         u_prev, t_prev = u[i], t[i]
     force = np.empty_like(u)
     tang = np.empty_like(u)
     assert run_history(spec.code, packed, np.array(spec.initial_state), u, t, True, 3, force, tang) == (0, -1)
-    assert np.array_equal(force, f)
+    assert np.array_equal(force, f)  # run_history is the driver simulate_force calls
 
 
 @pytest.mark.parametrize("law, p, k0", [

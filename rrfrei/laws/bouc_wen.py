@@ -42,7 +42,7 @@ has nearly converged (relative change of |z| below 1e-6), updated by a second-or
 instead of a ``pow`` call; |z|^eta = |z| |z|^(eta-1).  The iterates agree with a plain port to
 about 1e-16.
 
-Fast solver (whole histories, opt-in :func:`drive_fast`, non-integer eta).  Per sub-step, with the trial
+Fast solver (whole histories, :func:`drive`, non-integer eta).  Per sub-step, with the trial
 z equal to z_C (always so in a history), the root of f is found by Halley's method in the frame
 of an anchor z_A: f(w) = w + (z_A - z_C) - r + G (1 + x)^eta, x = sgn(z_A) w / |z_A|,
 G = r (gamma + beta sgn(z_A du)) |z_A|^eta, where (1 + x)^(eta-1) is a 32-term Taylor polynomial
@@ -76,7 +76,7 @@ sum of the magnitudes of its terms): it is then that root, and OpenSees' iterate
 to rounding.  For the anchor at OpenSees' first iterate the same argument applies from
 iteration 1 (our iterate differs from OpenSees' by rounding, absorbed by the margins).
 Otherwise :func:`step` (the OpenSees iteration) runs from the original trial state, so status
-and failure sample are OpenSees' own.  Forces agree with :func:`drive` to ~1e-15.
+and failure sample are OpenSees' own.  Forces agree with :func:`drive_exact` to ~1e-15.
 """
 
 from dataclasses import replace
@@ -216,8 +216,9 @@ SPEC = register(
 
 
 @njit(cache=True, error_model="numpy")
-def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
-    """Whole-history driver of this law (contract of :func:`rrfrei.laws.kernel.drive`)."""
+def drive_exact(p, sc, st, disp, time, use_time, substeps, force, tangent):
+    """OpenSees' own iteration (:func:`step`) at every sub-step of a history: the reference the
+    fast :func:`drive` is tested against (same contract as :func:`rrfrei.laws.kernel.drive`)."""
     u_prev = 0.0
     t_prev = time[0] if use_time else 0.0
     for i in range(disp.shape[0]):
@@ -542,12 +543,13 @@ def _fast_run(p, c, lim, sc, st, disp, k, substeps, force, tangent):
 
 
 @njit(cache=True, error_model="numpy")
-def drive_fast(p, sc, st, disp, time, use_time, substeps, force, tangent):
-    """:func:`drive` with the fast solver (opt-in: not bit-identical to :func:`step`, so not
-    wired into :func:`rrfrei.laws.kernel.drive`, whose contract includes bit identity).
+def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
+    """Whole-history driver of this law (contract of :func:`rrfrei.laws.kernel.drive`).
 
     Runs the fast solver (module docstring, "Fast solver") where its guard certifies that
-    OpenSees' Newton iteration converges to the same root, and :func:`step` elsewhere.
+    OpenSees' Newton iteration converges to the same root, and :func:`step` elsewhere; integer
+    eta always goes through :func:`step`.  Forces agree with :func:`drive_exact` (OpenSees'
+    iteration at every step) to rounding (~1e-15), and status and failure sample are the same.
     """
     c, x16, x32, stop = fast_constants(p[5])
     if p[5] == 1.0 or p[5] == 2.0 or p[5] == 3.0:
