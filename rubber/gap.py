@@ -51,6 +51,11 @@ __all__ = ["Effect", "EFFECTS", "CRITERION", "MARGIN", "augmented_stress", "Rubb
 CRITERION = "BIC"
 MARGIN = 10.0
 """An effect must lower BIC by more than this (Kass & Raftery 1995: Delta BIC > 10 is 'very strong')."""
+LSQ_EVALS_PER_DIM2 = 20
+"""Evaluation budget of one least-squares run: 20 (1 + k)^2 model evaluations for k unknowns
+(about ten Gauss-Newton iterations with their Jacobians).  ``max_nfev`` alone does not count the
+Jacobian's evaluations, and with slow (stiff) parameter sets a run could otherwise go on for an
+hour; the best point evaluated is returned."""
 Z_BAND = float(_norm.ppf(0.5 + LEVEL / 2))  # 1.96 for LEVEL = 0.95
 
 
@@ -382,7 +387,19 @@ class RubberModel(GapModel):
         scale = [math.sqrt(float(np.sum(t.stress**2))) for t in tests]
         big = math.sqrt(FAIL_F / sum(t.time.size for t in tests))
 
+        seen = {"n": 0, "best": (np.inf, z0)}
+
         def resid(z):
+            seen["n"] += 1
+            if seen["n"] > budget:
+                raise _BudgetSpent
+            r = _resid(z)
+            c = float(r @ r)
+            if c < seen["best"][0]:
+                seen["best"] = (c, np.array(z, dtype=float))
+            return r
+
+        def _resid(z):
             try:
                 p = space.params(z[:nb])
             except ValueError:
@@ -401,12 +418,19 @@ class RubberModel(GapModel):
             return np.concatenate(out)
 
         k = z0.size
-        sol = least_squares(resid, z0, bounds=(0.0, 1.0), x_scale=1.0, diff_step=1e-6,
-                            max_nfev=60 * (1 + k), xtol=1e-12, ftol=1e-12, gtol=1e-12)
-        r0 = resid(z0)
-        if float(r0 @ r0) <= float(sol.fun @ sol.fun):
-            return z0, float(r0 @ r0)
-        return sol.x, float(sol.fun @ sol.fun)
+        budget = LSQ_EVALS_PER_DIM2 * (1 + k) ** 2
+        try:
+            least_squares(resid, z0, bounds=(0.0, 1.0), x_scale=1.0, diff_step=1e-6,
+                          max_nfev=60 * (1 + k), xtol=1e-12, ftol=1e-12, gtol=1e-12)
+        except _BudgetSpent:
+            pass
+        cost, z = seen["best"]
+        return z, cost
+
+
+class _BudgetSpent(Exception):
+    """Raised inside the least-squares residual once ``LSQ_EVALS_PER_DIM2 (1 + k)^2`` evaluations
+    (finite-difference Jacobians included) are spent; the best point seen is kept."""
 
 
 def _x_of(space: _Space, p: PRFParams) -> np.ndarray:
