@@ -113,18 +113,18 @@ def _pm1(za, eta):
     return za ** (eta - 1.0)
 
 
+@njit(cache=True, inline="always")
+def _constants(p):
+    """(k_init, qd, k0, k2, k3, mu, eta, beta, gamma) of a parameter row (module docstring)."""
+    k_init = p[0]
+    return (k_init, p[1], (1.0 - p[2]) * k_init, p[2] * k_init, p[3] * k_init, p[4], p[5], p[6],
+            p[7])
+
+
 @njit(cache=True, error_model="numpy")
 def step(p, sc, u, v, dt, st):
     """Bouc-Wen bearing shear force [kN], tangent [kN/m] and status (see the module docstring)."""
-    k_init = p[0]
-    qd = p[1]
-    k0 = (1.0 - p[2]) * k_init
-    k2 = p[2] * k_init
-    k3 = p[3] * k_init
-    mu = p[4]
-    eta = p[5]
-    beta = p[6]
-    gamma = p[7]
+    k_init, qd, k0, k2, k3, mu, eta, beta, gamma = _constants(p)
     du = u - sc[0]
     st[0] = u
     if du == 0.0:  # OpenSees keeps q and k_t of the previous update() call
@@ -379,15 +379,7 @@ def _fast_run(p, c, lim, sc, st, disp, k, substeps, force, tangent):
     when the history is done), with ``sc`` and ``st`` holding the last fast sub-step,
     committed.
     """
-    k_init = p[0]
-    qd = p[1]
-    k0 = (1.0 - p[2]) * k_init
-    k2 = p[2] * k_init
-    k3 = p[3] * k_init
-    mu = p[4]
-    eta = p[5]
-    beta = p[6]
-    gamma = p[7]
+    k_init, qd, k0, k2, k3, mu, eta, beta, gamma = _constants(p)
     iuy = k0 / qd
     x32 = lim[1]
     stop = lim[2]
