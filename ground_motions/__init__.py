@@ -10,6 +10,8 @@ recurrence is a Numba kernel over arrays (``spectra._nigam_jennings``).
 - :func:`scale_to_pga`, :func:`scale_to_spectrum`; :func:`plot_record`, :func:`plot_spectra`.
 """
 
+import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
+
 from .catalogue import available, load
 from .io import read
 from .plotting import plot_record, plot_spectra

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import importlib
 
+from rrfrei import _jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
+
 __version__ = "0.1.0"
 
 _LAZY = {

@@ -6,6 +6,8 @@ The gap diagnosis (``rubber.gap``: ``RubberModel``, ``rank_effects``) is exporte
 imports the ``rrfrei.gap`` engine.
 """
 
+import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
+
 from .fit import FitResult, fit, objective
 from .io import Test, read_test
 from .prf import (

@@ -11,6 +11,7 @@ chain, calling ``rrfrei.laws.kernel.step`` for the isolator) and the public verb
 ('five_story', 'three_story')
 """
 
+import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
 from structures.building import Isolator, ShearBuilding, available_buildings, load_building
 from structures.newmark import ConvergenceError, Response, time_history, time_history_batch
 from structures.propagate import ResponseSet, SpectrumScaling, propagate  # noqa: F401  (propagation API)

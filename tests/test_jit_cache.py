@@ -1,0 +1,95 @@
+"""Compiled code is never stale: an edit to any kernel source reaches every compiled caller.
+
+Numba keys a cached function on its own source file only, so a cached caller in another file
+(``dispatch.base_step``/``base_drive`` calling ``plasticity.step``) used to keep the old machine
+code after ``plasticity.py`` changed.  Reproduced as it broke: a copy of the package, a warm
+cache, an edit of the elastic branch of one law, then the public functions must change; and
+reverting the edit must bring the original numbers back.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("rrfrei", "structures", "rubber", "ground_motions")
+
+PROBE = r"""
+import json, numpy as np
+import rrfrei
+from rrfrei.laws.dispatch import base_step
+u = np.linspace(0.0, 1e-4, 5)              # elastic branch only (u < u_y = 2e-3 m)
+p = dict(k_init=1000.0, qd=2.0, alpha1=0.1, alpha2=0.0, mu=2.0)
+f = rrfrei.simulate_force("plasticity", p, u)
+spec = rrfrei.laws.get("plasticity")
+sc = np.zeros(1); st = np.zeros(1)
+fs, kt, status = base_step(spec.kernel_id, spec.pack(p), sc, 1e-4, 0.0, 1.0, st)
+from rrfrei import _jit_cache
+print(json.dumps({"simulate": float(f[-1]), "base_step": float(fs), "cache": _jit_cache.CACHE_DIR}))
+"""
+
+EDIT_FROM = "        return q_tr + k2 * u + nl_f, k0 + k2 + nl_k, 0\n"
+EDIT_TO = "        return 2.0 * (q_tr + k2 * u + nl_f), k0 + k2 + nl_k, 0\n"
+
+
+def _run(tree: Path) -> dict:
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "_RRFREI_NUMBA_CACHE")}
+    env["PYTHONPATH"] = str(tree)
+    env["XDG_CACHE_HOME"] = str(tree / "xdg")
+    out = subprocess.run(
+        [sys.executable, "-c", PROBE], cwd=tree, env=env, capture_output=True, text=True, timeout=600
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture
+def tree(tmp_path):
+    for pkg in PACKAGES:
+        shutil.copytree(ROOT / pkg, tmp_path / pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    return tmp_path
+
+
+def test_editing_a_law_reaches_callers_in_other_files_and_reverting_restores_it(tree):
+    law = tree / "rrfrei" / "laws" / "plasticity.py"
+    source = law.read_text()
+    assert EDIT_FROM in source, "the probe's edit no longer matches plasticity.py"
+
+    before = _run(tree)
+    warm = _run(tree)  # from the cache this time
+    assert warm["simulate"] == before["simulate"] == pytest.approx(1000.0 * 1e-4)
+    assert warm["cache"] == before["cache"]
+    assert Path(before["cache"]).is_relative_to(tree), "the cache lives with the checkout"
+
+    law.write_text(source.replace(EDIT_FROM, EDIT_TO))
+    edited = _run(tree)
+    assert edited["cache"] != before["cache"], "an edited kernel source must select a new cache"
+    assert edited["simulate"] == pytest.approx(2.0 * before["simulate"], rel=1e-12)
+    assert edited["base_step"] == pytest.approx(2.0 * before["base_step"], rel=1e-12)
+
+    law.write_text(source)
+    reverted = _run(tree)
+    assert reverted["simulate"] == before["simulate"]
+    assert reverted["base_step"] == before["base_step"]
+    assert not Path(edited["cache"]).exists(), "caches of other source versions are pruned"
+
+
+def test_a_user_set_numba_cache_dir_is_respected(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "mine"))
+    env.pop("_RRFREI_NUMBA_CACHE", None)
+    out = subprocess.run(
+        [sys.executable, "-c", "import rrfrei, os; from numba.core import config; "
+         "print(rrfrei._jit_cache.CACHE_DIR, config.CACHE_DIR)"],
+        env=env, capture_output=True, text=True, timeout=120, cwd=ROOT,
+    )
+    assert out.returncode == 0, out.stderr
+    ours, numba_dir = out.stdout.split()
+    assert ours == "None"
+    assert numba_dir == str(tmp_path / "mine")
