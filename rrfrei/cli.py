@@ -3,7 +3,9 @@
 Each command lives in ``rrfrei/commands/<name>.py`` and exposes ``register(subparsers)``,
 which adds its parser and sets ``func`` (called with the parsed args, returns an exit code).
 Errors a user can fix (bad path, malformed file, unknown law or record, bad parameter) become
-one line on stderr and exit status 2, never a traceback.
+one line on stderr and exit status 2, never a traceback; a numerical failure
+(:data:`rrfrei.errors.NUMERICAL_ERRORS`: a local solve, a singular matrix) exits 1 and says
+what failed where.
 """
 
 from __future__ import annotations
@@ -11,6 +13,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+
+from rrfrei.errors import NUMERICAL_ERRORS
 
 # Command modules, in the order they appear in --help.
 COMMANDS = ("calibrate", "compare", "gap", "gap_validate", "propagate", "demo")
@@ -49,6 +53,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args) or 0)
+    except NUMERICAL_ERRORS as exc:  # before USER_ERRORS: LinAlgError is a ValueError too
+        print(f"rrfrei {args.command}: numerical failure: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
     except USER_ERRORS as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         if isinstance(exc, (FileNotFoundError, IsADirectoryError, PermissionError)) and exc.filename:

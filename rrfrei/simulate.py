@@ -7,6 +7,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from rrfrei._inputs import as_history
+from rrfrei.errors import NumericalFailure
 from rrfrei.laws import STATUS_MESSAGES, LawSpec, get
 from rrfrei.laws.dispatch import base_drive
 from rrfrei.laws.kernel import drive
@@ -39,8 +40,10 @@ def simulate_force(
     Raises
     ------
     ValueError
-        unknown law, bad parameters, non-finite or non-1-D displacement, bad time, or a local
-        solve that failed (the message names the sample index and the state).
+        unknown law, bad parameters, non-finite or non-1-D displacement, or bad time.
+    NumericalFailure
+        (a ``ValueError`` subclass) the law's local solve failed; the message names the sample
+        index, the state and the parameters.
     """
     spec = get(law)
     p = spec.pack(params)
@@ -72,7 +75,7 @@ def simulate_force(
             int(spec.kernel_id), p, sc, st, u, t, use_time, int(substeps), force, tangent
         )
     if status != 0:
-        raise ValueError(
+        raise NumericalFailure(
             f"law {spec.name!r} failed at sample {idx} (disp = {u[idx]:.6g} m): "
             f"{STATUS_MESSAGES.get(int(status), f'status {status}')}; committed state "
             f"{np.array2string(sc, precision=6)}, failed trial state "

@@ -169,3 +169,40 @@ def test_user_error_gives_one_line_on_stderr_and_exit_2(runs, case):
     assert err and "\n" not in err, f"expected one line on stderr, got:\n{proc.stderr}"
     expect = _cases(_dummy())[case][1]
     assert expect in err, f"the error should name {expect!r}: {err}"
+
+
+
+def _raiser(kind: str, text: str):
+    import numpy as np
+
+    from rrfrei.errors import NumericalFailure
+
+    exc = {"linalg": np.linalg.LinAlgError, "numerical": NumericalFailure,
+           "zerodiv": ZeroDivisionError, "value": ValueError}[kind](text)
+
+    def boom(args):
+        raise exc
+
+    return boom
+
+
+@pytest.mark.parametrize(
+    "kind, text, code",
+    [
+        ("linalg", "Singular matrix", 1),  # LinAlgError is a ValueError subclass, yet numerical
+        ("numerical", "law failed at sample 8590", 1),
+        ("zerodiv", "float division by zero", 1),
+        ("value", "disp_mm: expected a number", 2),
+    ],
+)
+def test_a_numerical_failure_exits_1_and_a_user_error_exits_2(monkeypatch, capsys, kind, text, code):
+    from rrfrei import cli
+
+    parser = cli.build_parser()
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    parser._subparsers._group_actions[0].choices["calibrate"].set_defaults(func=_raiser(kind, text))
+    rc = cli.main(["calibrate", "protocol1", "--law", "linear", "--out", "unused"])
+    err = capsys.readouterr().err
+    assert rc == code
+    assert len(err.strip().splitlines()) == 1 and text in err
+    assert ("numerical failure" in err) == (code == 1)
