@@ -1,6 +1,6 @@
 """Numba kernels of the uniaxial PRF model: springs, flow rate, and the TR-BDF2 chain integrator.
 
-Units: stress MPa, time s.  Kinematics and flow rule as in ``/work/shared/reference/prf_model.md``
+Units: stress MPa, time s.  Kinematics and flow rule as in ``docs/reference/prf_model.md``
 (Bergstrom & Boyce 1998, JMPS 46:931; MSC Marc notation gamma_dot = C1 (lam_ch - 1 + xi)^C2 tau^C3).
 
 Each viscous chain k has one scalar state u_k = ln(lambda_v,k) obeying (Mises form, to which the

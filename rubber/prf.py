@@ -3,7 +3,7 @@
 An equilibrium Yeoh chain (Neo-Hookean when C20 = C30 = 0) in parallel with any number of
 Bergstrom-Boyce chains, each an Eight-Chain spring (five-term series, a3 = 11/1050) in series with
 the flow rule gamma_dot = C1 (lam_ch - 1 + xi)^C2 tau^C3 (MSC Marc notation; lam_ch of the viscous
-part).  Units: MPa, s.  Equations and sources: ``/work/shared/reference/prf_model.md`` sections 1-4.
+part).  Units: MPa, s.  Equations and sources: ``docs/reference/prf_model.md`` sections 1-4.
 
 Composition: ``Yeoh(...) & BBChain(...) & BBChain(...)`` gives a :class:`PRFModel`; each chain
 keeps its own state u_k = ln(lambda_v,k).  :class:`PRFParams` is the study's flat 14-name form.

@@ -1,7 +1,7 @@
 """Stretch histories of the study's two testing protocols (uniaxial, engineering strain rate).
 
 The study gives the amplitudes only in a figure, so every default below is a documented guess
-(``/work/shared/reference/prf_model.md`` section 7).  Both return sample times (s) and stretches of a
+(``docs/reference/prf_model.md`` section 7).  Both return sample times (s) and stretches of a
 piecewise-linear history: a uniform grid of step ``dt`` plus every kink (reversal, start/end of a
 hold) inserted exactly, so a simulation lands a step on each kink.
 """

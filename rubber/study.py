@@ -4,7 +4,7 @@ and to both (case C), then evaluate every fit on every protocol.
 RECONSTRUCTED PRESETS.  The paper ("Effects of two testing protocols on the material model parameter
 identification for rubber-like materials") could not be found with the search tool, so its Table 1
 is not reproduced here.  ``PRESETS`` are reconstructions consistent with every fact recorded in
-``/work/shared/reference/prf_model.md``: small-strain moduli per chain (case A 3.76/3.13/14.47,
+``docs/reference/prf_model.md``: small-strain moduli per chain (case A 3.76/3.13/14.47,
 B 2.00/4.90/4.28, C 3.62/3.25/12.47 MPa), bound-active values (A: N_B = 5, C1_C = 5; B: C10 = 1,
 N_B = 1), C3_C = 7.4 for A, C20 < 0 < C30 for A and C, C20 = +1.1 for B, the flow thresholds of case A
 (0.978 and 0.359 MPa at 0.093/s), W1_Yeoh min ~ 1.5 MPa with its inflection at I1 - 3 ~ 0.7, the

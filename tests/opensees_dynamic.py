@@ -1,6 +1,6 @@
 """openseespy model of a :class:`structures.ShearBuilding` (the peer of ``structures.time_history``).
 
-Follows ``/work/shared/reference/opensees_elements.md`` section 6 ("Dynamics"):
+Follows ``docs/reference/opensees_elements.md`` section 6 ("Dynamics"):
 
 * 2-D (``-ndm 2 -ndf 3``) for plasticity and bouc_wen, 3-D (``-ndm 3 -ndf 6``) with only X free
   for elastomeric_x and hdr; all nodes at the origin, node 1 the fixed ground, node 2 the base

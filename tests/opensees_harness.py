@@ -1,6 +1,6 @@
 """Reusable displacement-control openseespy driver for the four OpenSees bearing laws.
 
-Follows ``/work/shared/reference/opensees_elements.md`` section 6 exactly: a zero-length element
+Follows ``docs/reference/opensees_elements.md`` section 6 exactly: a zero-length element
 between a fixed node and a node whose global X DOF is imposed by ``sp(j, 1, 1.0)`` in a Plain
 pattern on a Path series (``-dt 1``, one padding value appended because PathSeries returns 0 at
 its last sample), the vertical DOF free on an elastic axial material/stiffness, every other DOF

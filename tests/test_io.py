@@ -8,14 +8,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from _shared import shared
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import rrfrei
 from rrfrei.io import DISP_UNITS, FORCE_UNITS, ShearTest, load_test, read_test
 
-DATA = Path("/work/shared/data")
-TIMBER = DATA / "hysteresis" / "clt_connection_tannert_spc1" / "SPC1.csv"
+TIMBER_PARTS = ("data", "hysteresis", "clt_connection_tannert_spc1", "SPC1.csv")
 
 
 def _write(path: Path, text: str) -> Path:
@@ -48,9 +48,9 @@ def test_unknown_bundled_name_lists_the_available_ones():
         load_test("protocol9")
 
 
-@pytest.mark.skipif(not TIMBER.exists(), reason="shared timber data not present")
 def test_timber_file_force_first_with_a_units_row_reads_by_naming_columns():
     """Real lab file: force FIRST, second header row 'kN,mm', no time -> pseudo-time, has_time False."""
+    TIMBER = shared(*TIMBER_PARTS)
     t = read_test(TIMBER, disp_col="Lead Actuator Displacment", force_col="Lead Actuator Force")
     raw = pd.read_csv(TIMBER, skiprows=[1])
     assert len(t) == 33028 == len(raw)
