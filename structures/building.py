@@ -329,9 +329,20 @@ def available_buildings() -> tuple[str, ...]:
     return tuple(sorted(p.stem for p in _BUILDINGS.glob("*.toml")))
 
 
-def load_building(name: str, isolator_params: Mapping[str, float] | None = None) -> ShearBuilding:
-    """A bundled example building by name (see :func:`available_buildings`)."""
+def load_building(name: str | Path, isolator_params: Mapping[str, float] | None = None) -> ShearBuilding:
+    """A bundled example building by name (see :func:`available_buildings`), or a TOML file.
+
+    ``name`` is read as a file when it is a ``Path``, names an existing file, or ends in
+    ``.toml``; otherwise it must be a bundled name (the error lists them).
+    """
     names = available_buildings()
-    if name not in names:
-        raise ValueError(f"unknown building {name!r}; available: {', '.join(names)}")
-    return ShearBuilding.from_toml(_BUILDINGS / f"{name}.toml", isolator_params=isolator_params)
+    text = str(name)
+    if isinstance(name, Path) or text.endswith(".toml") or Path(text).is_file():
+        path = Path(text)
+        if not path.is_file():
+            raise FileNotFoundError(2, "building file not found", str(path))
+        return ShearBuilding.from_toml(path, isolator_params=isolator_params)
+    if text not in names:
+        raise ValueError(f"unknown building {text!r}; bundled buildings: {', '.join(names)} "
+                         "(or give the path of a building TOML file)")
+    return ShearBuilding.from_toml(_BUILDINGS / f"{text}.toml", isolator_params=isolator_params)

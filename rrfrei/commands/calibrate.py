@@ -26,13 +26,29 @@ def _nonneg_int(text: str) -> int:
     return value
 
 
+def _min_int(minimum: int):
+    """argparse type: an integer >= ``minimum`` (0 is never a silent "default")."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(
+                f"expected an integer >= {minimum}, got {value} (leave the option out for the default)")
+        return value
+
+    return parse
+
+
 def add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--noise", choices=("iid", "ar1"), default="iid",
                    help="residual model: independent Gaussian or AR(1) (default iid)")
     p.add_argument("--seed", type=_nonneg_int, default=0, metavar="N", help="seed (default 0)")
-    p.add_argument("--walkers", type=_nonneg_int, default=None, metavar="N",
+    p.add_argument("--walkers", type=_min_int(2), default=None, metavar="N",
                    help="ensemble size (default max(32, 4 x parameters))")
-    p.add_argument("--steps", type=_nonneg_int, default=None, metavar="N",
+    p.add_argument("--steps", type=_min_int(2), default=None, metavar="N",
                    help="MCMC steps (default: until >= 50 autocorrelation times)")
     p.add_argument("--priors", default=None, metavar="TOML",
                    help="prior overrides ([priors.NAME] kind, a, b)")
@@ -89,8 +105,8 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
-        cal = calibrate(test, args.law, noise=args.noise, seed=args.seed, walkers=args.walkers or None,
-                        steps=args.steps or None, priors=args.priors, checkpoint=args.checkpoint,
+        cal = calibrate(test, args.law, noise=args.noise, seed=args.seed, walkers=args.walkers,
+                        steps=args.steps, priors=args.priors, checkpoint=args.checkpoint,
                         progress=not args.no_progress and not args.json)
     for w in caught:
         if issubclass(w.category, ConvergenceWarning):

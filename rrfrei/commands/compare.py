@@ -61,8 +61,8 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
         for law in laws:
-            cals[law] = calibrate(test, law, noise=args.noise, seed=args.seed, walkers=args.walkers or None,
-                                  steps=args.steps or None, priors=args.priors,
+            cals[law] = calibrate(test, law, noise=args.noise, seed=args.seed, walkers=args.walkers,
+                                  steps=args.steps, priors=args.priors,
                                   progress=not args.no_progress and not args.json)
             cals[law].to_netcdf(out / f"posterior_{law.replace('+', '_')}.nc")
     for w in caught:

@@ -1,0 +1,47 @@
+"""Smaller traps a user hit: each gets the behaviour a user expects (issue 16.6)."""
+
+from __future__ import annotations
+
+import sys
+import types
+from pathlib import Path
+
+import pytest
+
+import structures
+from rrfrei import cli
+
+
+@pytest.mark.parametrize("option", ["--steps", "--walkers"])
+def test_zero_steps_or_walkers_is_an_error_naming_the_option_not_a_silent_default(option, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["calibrate", "protocol1", "--law", "linear", "--out", "unused", option, "0"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert option in err and "expected an integer >= 2" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_command_module_that_fails_to_import_is_not_silently_dropped(monkeypatch):
+    monkeypatch.setattr(cli, "COMMANDS", (*cli.COMMANDS, "not_built_yet"))
+    with pytest.raises(ModuleNotFoundError, match="not_built_yet"):
+        cli.build_parser()
+    broken = types.ModuleType("rrfrei.commands.broken")
+    monkeypatch.setitem(sys.modules, "rrfrei.commands.broken", broken)  # no register(): a bug
+    monkeypatch.setattr(cli, "COMMANDS", ("broken",))
+    with pytest.raises(AttributeError, match="register"):
+        cli.build_parser()
+
+
+def test_load_building_reads_a_toml_path_and_lists_bundled_names_for_an_unknown_one(tmp_path):
+    bundled = Path(structures.__file__).parent / "buildings" / "three_story.toml"
+    mine = tmp_path / "my.toml"
+    mine.write_text(bundled.read_text())
+    by_path = structures.load_building(str(mine))
+    named = structures.load_building("three_story")
+    assert by_path.name == "my"
+    assert by_path.story_masses == named.story_masses and by_path.isolator == named.isolator
+    assert structures.load_building(mine) == by_path
+    with pytest.raises(FileNotFoundError):
+        structures.load_building(str(tmp_path / "missing.toml"))
+    with pytest.raises(ValueError, match="five_story.*three_story|three_story.*five_story"):
+        structures.load_building("ten_story")
