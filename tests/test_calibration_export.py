@@ -13,7 +13,6 @@ from rrfrei.laws import OPENSEES_LAWS, get
 from rrfrei.protocols import protocol1
 from rrfrei.simulate import simulate_force
 
-
 # ordinary specimen-scale values with every term active (alpha2 != 0, eta non-integer, hdr damage)
 PARAMS = {
     "plasticity": dict(k_init=260.123456789, qd=1.4, alpha1=0.33, alpha2=0.05, mu=2.5),
