@@ -45,3 +45,31 @@ def test_load_building_reads_a_toml_path_and_lists_bundled_names_for_an_unknown_
         structures.load_building(str(tmp_path / "missing.toml"))
     with pytest.raises(ValueError, match="five_story.*three_story|three_story.*five_story"):
         structures.load_building("ten_story")
+
+
+def test_the_cli_names_columns_of_a_raw_lab_file_without_renaming_them():
+    """SPC1.csv (real timber test): force first, 'Lead Actuator Displacment' (sic), a units row."""
+    from _shared import shared
+
+    from rrfrei.commands.calibrate import load
+    from rrfrei.io import read_test
+
+    path = shared("data", "hysteresis", "clt_connection_tannert_spc1", "SPC1.csv")
+    args = cli.build_parser().parse_args(
+        ["calibrate", str(path), "--law", "bouc_wen", "--out", "unused",
+         "--disp-col", "Lead Actuator Displacment:mm", "--force-col", "Lead Actuator Force :kN"])
+    got = load(str(path), args)
+    ref = read_test(path, disp_col="Lead Actuator Displacment", force_col="Lead Actuator Force ")
+    assert len(got) == 33028
+    assert (got.disp == ref.disp).all() and (got.force == ref.force).all()
+    args.disp_col = "Lead Actuator Displacment:furlong"
+    with pytest.raises(ValueError, match="furlong"):
+        load(str(path), args)
+
+
+def test_missing_geometry_error_says_where_the_sidecar_is_looked_for():
+    import rrfrei
+
+    spec = rrfrei.laws.get("elastomeric_x")
+    with pytest.raises(ValueError, match=r"<file>\.toml, <stem>\.toml or geometry\.toml"):
+        spec.resolve_fixed()

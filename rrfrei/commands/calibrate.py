@@ -65,26 +65,61 @@ def register(sub) -> None:
             "force_kN, or any unit-suffixed names; bundled tests by name: protocol1..protocol4, SYNTHETIC). "
             "Starts from a CMA-ES optimum and samples with emcee; checks the fit and held-out tests."
         ),
-        epilog=EXAMPLE,
+        epilog=EXAMPLE + "\n" + GEOMETRY_HELP + "\n",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("test", metavar="TEST.csv", help="test file (or a bundled test name)")
     p.add_argument("--law", required=True, help="law name (e.g. bouc_wen, or an augmented law bouc_wen+rate)")
     p.add_argument("--holdout", nargs="*", default=[], metavar="CSV", help="held-out test files to predict")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    add_column_args(p)
     p.add_argument("--checkpoint", default=None, metavar="H5",
                    help="HDF5 chain checkpoint (resumed if present)")
     add_common(p)
     p.set_defaults(func=run)
 
 
-def load(path: str):
-    """A test from a path, or a bundled test by name."""
-    from rrfrei.io import bundled_tests, load_test, read_test
+GEOMETRY_HELP = (
+    "bearing geometry (d2, tr, n, ... in m) for elastomeric_x comes from a sidecar TOML [geometry] "
+    "table next to the test: <file>.toml (e.g. test.csv.toml), <stem>.toml (test.toml) or "
+    "geometry.toml, searched in that order")
+
+
+def add_column_args(p: argparse.ArgumentParser) -> None:
+    """``--disp-col``, ``--force-col``, ``--time-col`` (NAME or NAME:UNIT) for raw lab files."""
+    p.add_argument("--disp-col", default=None, metavar="NAME[:UNIT]",
+                   help="displacement column and, if its name carries none, its unit (m, cm, mm, in); "
+                        "e.g. --disp-col 'Lead Actuator Displacment:mm'")
+    p.add_argument("--force-col", default=None, metavar="NAME[:UNIT]",
+                   help="force column and unit (N, kN, MN, lbf, kip), e.g. --force-col 'Actuator:kN'")
+    p.add_argument("--time-col", default=None, metavar="NAME",
+                   help="time column (default: a time_* column; none: the sample index is used)")
+
+
+def _column(text: str | None, units: dict, what: str) -> tuple[str | None, str | None]:
+    if text is None:
+        return None, None
+    name, sep, unit = text.rpartition(":")
+    if sep and unit.strip().lower() in units:
+        return name, unit.strip()
+    if sep and unit.strip():
+        raise ValueError(f"--{what}-col {text!r}: unit {unit.strip()!r} is not one of "
+                         f"{', '.join(units)}")
+    return text, None
+
+
+def load(path: str, args: argparse.Namespace | None = None):
+    """A test from a path (columns named by ``args``' column options), or a bundled test by name."""
+    from rrfrei.io import DISP_UNITS, FORCE_UNITS, bundled_tests, load_test, read_test
 
     if not Path(path).exists() and path.removesuffix(".csv") in bundled_tests():
         return load_test(path)
-    return read_test(path)
+    if args is None or not any(getattr(args, k, None) for k in ("disp_col", "force_col", "time_col")):
+        return read_test(path)
+    disp_col, disp_unit = _column(args.disp_col, DISP_UNITS, "disp")
+    force_col, force_unit = _column(args.force_col, FORCE_UNITS, "force")
+    return read_test(path, disp_col=disp_col, disp_unit=disp_unit, force_col=force_col,
+                     force_unit=force_unit, time_col=args.time_col)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -99,8 +134,8 @@ def run(args: argparse.Namespace) -> int:
     from rrfrei.laws import get
 
     get(args.law)  # unknown law -> user error before reading anything heavy
-    test = load(args.test)
-    holdouts = [load(h) for h in args.holdout]
+    test = load(args.test, args)
+    holdouts = [load(h, args) for h in args.holdout]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with warnings.catch_warnings(record=True) as caught:

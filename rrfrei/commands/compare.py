@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from rrfrei.commands.calibrate import add_common, load
+from rrfrei.commands.calibrate import add_column_args, add_common, load
 
 EXAMPLE = """\
 Example:
@@ -34,6 +34,7 @@ def register(sub) -> None:
     p.add_argument("--laws", default="all", help="comma-separated law names, or 'all' (default)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     add_common(p)
+    add_column_args(p)
     p.set_defaults(func=run)
 
 
@@ -54,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
         get(law)
     if len(laws) < 2:
         raise ValueError(f"give at least two laws to compare, got {laws}")
-    test = load(args.test)
+    test = load(args.test, args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cals = {}

@@ -6,6 +6,8 @@ import argparse
 import json
 import sys
 
+from rrfrei.commands.calibrate import add_column_args, load
+
 EXAMPLE = """\
 Example:
   rrfrei gap P1.csv --law bouc_wen --holdout P2.csv P3.csv P4.csv --out gap-report --json
@@ -30,6 +32,7 @@ def register(sub) -> None:
     p.add_argument("--out", default="gap-report", metavar="DIR", help="output folder")
     p.add_argument("--seed", type=int, default=0, help="seed of fits and draws (default 0)")
     p.add_argument("--json", action="store_true", help="print the JSON summary on stdout")
+    add_column_args(p)
     p.set_defaults(func=run)
 
 
@@ -39,7 +42,9 @@ def run(args) -> int:
 
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
-    rep = diagnose_gap(args.test, args.law, holdout=args.holdout, effects=args.effects, seed=args.seed)
+    test = load(args.test, args)
+    holdout = [load(h, args) for h in args.holdout]
+    rep = diagnose_gap(test, args.law, holdout=holdout, effects=args.effects, seed=args.seed)
     md = write_report(rep, args.out)
     if args.json:
         json.dump(rep.as_dict(), sys.stdout, indent=2)

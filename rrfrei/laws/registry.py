@@ -234,7 +234,8 @@ class LawSpec:
         if missing:
             raise ValueError(
                 f"law {self.name!r} needs the bearing geometry {', '.join(missing)} [m] for "
-                f"{source}; give it in a sidecar TOML ([geometry] table), via "
+                f"{source}; give it in a sidecar TOML [geometry] table next to the test file "
+                "(<file>.toml, <stem>.toml or geometry.toml, searched in that order), via "
                 "read_test(geometry=...) or as fixed values"
             )
         for k, v in out.items():
