@@ -52,6 +52,13 @@ TESTS = ("protocol1", "protocol2", "protocol3", "protocol4")
 SYNTHETIC = "SYNTHETIC"
 
 
+#: Failures a demo step may meet on valid input (bad data, numerical failure, a structural
+#: analysis that did not converge, a file problem); they are written into the page.  Anything
+#: else is a bug and propagates.
+EXPECTED_FAILURES: tuple[type[BaseException], ...] = (
+    ValueError, RuntimeError, ArithmeticError, OSError, np.linalg.LinAlgError)
+
+
 class Placeholder(Exception):
     """A step's workflow is not available yet: its section is a placeholder, not a result."""
 
@@ -242,7 +249,7 @@ def step_calibrate(ctx: DemoContext, sec: Section) -> None:
                 warnings.simplefilter("ignore")  # convergence is reported in the table instead
                 cal = calibrate(test, law, walkers=s.walkers, steps=s.steps, max_steps=s.max_steps,
                                 seed=s.seed, progress=ctx.progress)
-        except Exception as exc:  # one law failing must not hide the others
+        except EXPECTED_FAILURES as exc:  # one law failing must not hide the others (bugs do show)
             failed[law] = f"{type(exc).__name__}: {exc}"
             ax.set_title(f"{law}: calibration failed", fontsize=9)
             ax.set_axis_off()
@@ -709,7 +716,8 @@ def run_step(step: Step, ctx: DemoContext) -> Section:
     except Placeholder as exc:
         sec.placeholder = True
         sec.reading = f"Placeholder: {exc}."
-    except Exception as exc:  # a failing step must not kill the page
+    except EXPECTED_FAILURES as exc:  # a failing step must not kill the page; a bug (TypeError,
+        # AttributeError, ...) is not caught: it must show, not hide in a page
         tb = traceback.extract_tb(exc.__traceback__)[-3:]
         where = "".join(traceback.format_list(tb))
         sec.error = f"{type(exc).__name__}: {exc}\n\nWhere:\n{where}"

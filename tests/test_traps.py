@@ -73,3 +73,39 @@ def test_missing_geometry_error_says_where_the_sidecar_is_looked_for():
     spec = rrfrei.laws.get("elastomeric_x")
     with pytest.raises(ValueError, match=r"<file>\.toml, <stem>\.toml or geometry\.toml"):
         spec.resolve_fixed()
+
+
+def test_a_demo_step_writes_an_expected_failure_into_the_page_but_a_bug_propagates():
+    from rrfrei.demo import DemoContext, DemoSettings, Step, run_step
+
+    def numerical(ctx, sec):
+        raise ValueError("law 'bouc_wen' failed at sample 12")
+
+    def bug(ctx, sec):
+        raise TypeError("unsupported operand type(s)")
+
+    ctx = DemoContext(DemoSettings(), progress=False)
+    sec = run_step(Step("x", "X", numerical), ctx)
+    assert "failed at sample 12" in sec.error
+    with pytest.raises(TypeError):
+        run_step(Step("y", "Y", bug), ctx)
+
+
+def test_a_checkpoint_without_chain_reads_as_zero_steps_and_other_errors_show(tmp_path):
+    import emcee
+    import h5py
+
+    from rrfrei.calibration.sampler import _stored_iterations
+
+    path = tmp_path / "opt.h5"
+    with h5py.File(path, "w") as f:
+        f.require_group("rrfrei")
+    assert _stored_iterations(emcee.backends.HDFBackend(str(path))) == 0
+
+    class Broken:
+        @property
+        def iteration(self):
+            raise TypeError("a bug")
+
+    with pytest.raises(TypeError):
+        _stored_iterations(Broken())

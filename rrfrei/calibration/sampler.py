@@ -269,7 +269,7 @@ def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generato
 def _tau(chain: np.ndarray) -> np.ndarray:
     try:
         return np.asarray(emcee.autocorr.integrated_time(chain, tol=0), dtype=float)
-    except Exception:  # too short a chain
+    except (emcee.autocorr.AutocorrError, ValueError, FloatingPointError):  # too short a chain
         return np.full(chain.shape[2], np.nan)
 
 
@@ -378,7 +378,7 @@ def run_chain(
 def _stored_iterations(backend: emcee.backends.HDFBackend) -> int:
     try:
         return int(backend.iteration)
-    except Exception:  # file without the mcmc group (e.g. created by find_map only)
+    except (AttributeError, KeyError, OSError):  # no mcmc group (e.g. created by find_map only)
         return 0
 
 
