@@ -2,7 +2,7 @@
 
 Usage::
 
-    python docs/check_report.py REPORT_DIR [--screenshot docs/report.png] [--width 1200]
+    python docs/check_report.py REPORT_DIR [--screenshot PNG] [--width 1200]
 
 What it does
 ------------
@@ -22,7 +22,7 @@ What it does
    (``Runtime.exceptionThrown``) and browser log entries (``Log.entryAdded``, e.g. a failed
    resource load); any message at level error, or any exception, fails the check.
 5. Saves a full-page screenshot (``Page.captureScreenshot`` with ``captureBeyondViewport``) to
-   ``--screenshot`` (default ``docs/report.png``; the full page height is capped by
+   ``--screenshot`` (default ``REPORT_DIR/screenshot.png``; the full page height is capped by
    ``--max-height`` pixels, default 5000, to keep the file small).
 
 Prints one line per finding and ``report check: OK`` or ``report check: FAILED``; exit status 0
@@ -232,11 +232,14 @@ def main(argv: list[str] | None = None) -> int:
         epilog="Example: rrfrei demo --out report --quick && python docs/check_report.py report",
     )
     parser.add_argument("report_dir", type=Path, help="folder holding index.html")
-    parser.add_argument("--screenshot", type=Path,
-                        default=Path(__file__).resolve().with_name("report.png"))
+    parser.add_argument("--screenshot", type=Path, default=None,
+                        help="PNG to write (default: REPORT_DIR/screenshot.png, so the tracked "
+                             "docs/report.png is only replaced when asked for by name)")
     parser.add_argument("--width", type=int, default=1200)
     parser.add_argument("--max-height", type=int, default=5000)
     args = parser.parse_args(argv)
+    if args.screenshot is None:
+        args.screenshot = args.report_dir / "screenshot.png"
     try:
         import websocket  # noqa: F401
     except ImportError:
