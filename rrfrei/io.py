@@ -240,8 +240,14 @@ def read_test(
     if path.is_dir():
         raise IsADirectoryError(21, "Is a directory", str(path))
     where = str(path)
-    with path.open(newline="", encoding="utf-8-sig") as fh:
-        rows = list(csv.reader(fh))
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            rows = list(csv.reader(fh))
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{where}: not a text CSV file (byte {exc.start} is not UTF-8 text: "
+                         "a binary file, or another encoding)") from None
+    except csv.Error as exc:
+        raise ValueError(f"{where}: malformed CSV: {exc}") from None
     rows = [r for r in rows if any(c.strip() for c in r)]
     if not rows:
         raise ValueError(f"{where}: the file is empty")

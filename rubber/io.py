@@ -41,8 +41,14 @@ class Test:
 
 
 def _read_csv(path: Path) -> Test:
-    with path.open(newline="") as fh:
-        rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a text CSV file (byte {exc.start} is not UTF-8 text: a "
+                         "binary file, or another encoding)") from None
+    except csv.Error as exc:
+        raise ValueError(f"{path}: malformed CSV: {exc}") from None
     if not rows:
         raise ValueError(f"{path}: empty file")
     head = [h.strip() for h in rows[0]]

@@ -109,3 +109,15 @@ def test_a_checkpoint_without_chain_reads_as_zero_steps_and_other_errors_show(tm
 
     with pytest.raises(TypeError):
         _stored_iterations(Broken())
+
+
+@pytest.mark.parametrize("reader", ["rrfrei", "rubber"])
+def test_a_binary_file_renamed_csv_gives_an_error_naming_the_file(tmp_path, reader):
+    import rrfrei
+    import rubber
+
+    path = tmp_path / "test.csv"
+    path.write_bytes(b"time_s,disp_mm\n" + bytes(range(128, 256)) * 4)
+    read = rrfrei.read_test if reader == "rrfrei" else rubber.read_test
+    with pytest.raises(ValueError, match=r"test\.csv.*not a text CSV"):
+        read(path)
