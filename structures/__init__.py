@@ -25,6 +25,7 @@ from structures.shake_table import (  # noqa: F401  (shake-table runs)
     load_run,
     read_run,
 )
+from structures.specimen import SpecimenWarning, specimen_checks  # noqa: F401  (posterior vs building)
 
 __all__ = [
     "ConvergenceError",

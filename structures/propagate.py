@@ -39,6 +39,7 @@ import pandas as pd
 
 from structures import summaries
 from structures.fragility import Fragility, fit_fragility
+from structures.specimen import SpecimenWarning, specimen_checks
 from structures.store import ParquetStore
 
 __all__ = ["DEMAND_LABELS", "ResponseSet", "SpectrumScaling", "propagate"]
@@ -604,6 +605,11 @@ def propagate(
     lim["drift_ratio_max"] = DEFAULT_DRIFT_LIMIT
     if limits is not None:
         lim = {str(k): float(v) for k, v in dict(limits).items()}
+    # ---- is this posterior an isolator for this building? (warn, never refuse)
+    for msg in specimen_checks(bld, np.median(params, axis=0),
+                               None if d_max is None else length_scale * d_max):
+        notes.append(msg)
+        warnings.warn(msg, SpecimenWarning, stacklevel=2)
     building_name = str(getattr(bld, "name", "") or "")
 
     # ---- identity of the inputs (the store refuses anything else)
