@@ -52,13 +52,13 @@ def coarse_history(period, n=400):
 FAILING = [(0.51, 0.5, 23, 88), (0.51, -0.25, 41, 95), (0.3, 0.25, 41, 49)]
 
 
-def _raw(fn, p, u, *extra):
+def _raw(fn, p, u, *extra, substeps=1):
     P = SPEC.pack(p)
     F = np.full(u.size, np.nan)
     T = np.full(u.size, np.nan)
     sc = np.zeros(5)
     st_ = np.zeros(5)
-    status = fn(P, sc, st_, u, np.zeros(u.size), False, 1, F, T, *extra)
+    status = fn(P, sc, st_, u, np.zeros(u.size), False, substeps, F, T, *extra)
     return status, F, sc, st_
 
 
@@ -150,25 +150,25 @@ def test_robust_root_at_and_across_z_equal_zero_with_eta_below_one(eta):
 @settings(max_examples=50, deadline=None)
 @given(eta=st.floats(0.2, 6.0), beta=st.floats(0.05, 3.0), gamma_frac=st.floats(-0.99, 1.0),
        qd=st.floats(0.05, 10.0), alpha1=st.floats(0.0, 0.9), amp=st.floats(1e-3, 0.2),
-       n=st.integers(20, 300), seed=st.integers(0, 2**31 - 1))
+       n=st.integers(20, 300), seed=st.integers(0, 2**31 - 1), substeps=st.sampled_from([1, 1, 3]))
 def test_robust_run_is_the_opensees_run_wherever_opensees_converges(eta, beta, gamma_frac, qd,
-                                                                   alpha1, amp, n, seed):
+                                                                   alpha1, amp, n, seed, substeps):
     p = dict(k_init=100.0, qd=qd, alpha1=alpha1, alpha2=0.01, mu=2.0, eta=eta, beta=beta,
              gamma=gamma_frac * beta)
     rng = np.random.default_rng(seed)
     u = np.cumsum(rng.normal(0.0, amp / np.sqrt(n), n)) + amp * np.sin(np.linspace(0, 6, n))
-    F_r, devs = robust(p, u)
-    F_o = _raw(bw.drive, p, u)[1]
+    F_r, devs = robust(p, u, substeps=substeps)
+    F_o = _raw(bw.drive, p, u, substeps=substeps)[1]
     first = devs[0].samples[0] if devs else u.size
     np.testing.assert_array_equal(F_r[:first], F_o[:first])
     try:
-        rrfrei.simulate_force("bouc_wen", p, u)
+        rrfrei.simulate_force("bouc_wen", p, u, substeps=substeps)
     except NumericalFailure as exc:  # the robust solve acted at (or, see below, before) it
         fail = int(str(exc).split("failed at sample ")[1].split()[0])
         assert first <= fail
     else:
         # where OpenSees completes, a deviation is a step where it "converged" away from a root
-        for i in devs[0].samples if devs else ():
+        for i in devs[0].samples if devs and substeps == 1 else ():
             dev = np.zeros(i, dtype=np.int64)
             _, _, sc, st_ = _raw(bw.drive_robust, p, u[:i], dev)
             P = SPEC.pack(p)
