@@ -2,15 +2,82 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 
 import numpy as np
 
 from rrfrei._inputs import as_history
 from rrfrei.errors import NumericalFailure
-from rrfrei.laws import STATUS_MESSAGES, LawSpec, get
+from rrfrei.laws import STATUS_MESSAGES, LawSpec, bouc_wen, get
 from rrfrei.laws.dispatch import base_drive
 from rrfrei.laws.kernel import drive
+
+LOCAL_SOLVERS = ("opensees", "robust")
+"""Values of the ``local_solver`` option of :func:`simulate_force` and
+:func:`structures.time_history`."""
+
+_NO_LOCAL_ITERATION = ("linear", "plasticity")
+"""Base laws whose update is closed-form (no local iteration: ``"robust"`` changes nothing)."""
+
+
+class LocalSolverDeviation(UserWarning):
+    """The robust local solve replaced OpenSees' failed (or falsely converged) local iteration
+    at some steps.
+
+    Attributes
+    ----------
+    law : law name.
+    samples : (k,) int array, the sample (output step) indices where it acted.
+    """
+
+    def __init__(self, message: str, law: str, samples: np.ndarray):
+        super().__init__(message)
+        self.law = law
+        self.samples = samples
+
+
+def robust_local_solve(spec: LawSpec, local_solver) -> bool:
+    """True when ``local_solver`` asks for the robust Bouc-Wen solve, after validating it.
+
+    ``"opensees"`` (OpenSees' own local iteration, the default) is valid for every law;
+    ``"robust"`` for ``bouc_wen`` (bracketed safeguarded Newton where OpenSees' iteration fails,
+    see :mod:`rrfrei.laws.bouc_wen`) and for the closed-form laws (``linear``, ``plasticity``),
+    where it changes nothing.  Raises ``ValueError`` otherwise.
+    """
+    if not isinstance(local_solver, str) or local_solver not in LOCAL_SOLVERS:
+        raise ValueError(
+            f"local_solver = {local_solver!r} is invalid: expected one of {LOCAL_SOLVERS}"
+        )
+    if local_solver == "opensees":
+        return False
+    if not spec.effects and spec.name == "bouc_wen":
+        return True
+    if not spec.effects and spec.name in _NO_LOCAL_ITERATION:
+        return False
+    raise ValueError(
+        f"local_solver = 'robust' is not available for law {spec.name!r}: it is implemented for "
+        "'bouc_wen' (and is a no-op for the closed-form laws 'linear' and 'plasticity'); use "
+        "local_solver='opensees'"
+    )
+
+
+def deviation_warning(law: str, samples: np.ndarray, where: str = "sample") -> LocalSolverDeviation:
+    """The :class:`LocalSolverDeviation` naming how many and which steps deviated."""
+    first = ", ".join(str(int(i)) for i in samples[:5]) + (", ..." if samples.size > 5 else "")
+    return LocalSolverDeviation(
+        f"law {law!r}: OpenSees' local Newton iteration failed (or stopped away from a root) at "
+        f"{samples.size} {where}(s) ({where} {first}); the robust bracketed solve "
+        "(local_solver='robust') was used there, a deviation from OpenSees",
+        law,
+        samples,
+    )
+
+
+ROBUST_HINT = (
+    "; local_solver='robust' solves the same backward-Euler equation by bracketed safeguarded "
+    "Newton where OpenSees' iteration fails (reported as a deviation from OpenSees)"
+)
 
 
 def simulate_force(
@@ -21,6 +88,7 @@ def simulate_force(
     time=None,
     substeps: int = 1,
     return_tangent: bool = False,
+    local_solver: str = "opensees",
 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Shear force [kN] of ``law`` along the displacement history ``disp`` [m].
 
@@ -36,6 +104,13 @@ def simulate_force(
         the sampling); n > 1 splits every increment into n equal parts for a step-size-converged
         answer.
     return_tangent : also return the tangent stiffness history [kN/m].
+    local_solver : ``"opensees"`` (default) runs OpenSees' local Newton iteration and fails where
+        it fails; ``"robust"`` (``bouc_wen`` only; a no-op for ``linear`` and ``plasticity``)
+        keeps that iteration wherever it converges to a root (identical forces) and, where it
+        fails or stops away from a root, solves the same step equation by bracketed safeguarded
+        Newton
+        (:func:`rrfrei.laws.bouc_wen.solve_bracketed`).  Those samples are a deviation from
+        OpenSees and are reported by a :class:`LocalSolverDeviation` warning (``.samples``).
 
     Raises
     ------
@@ -43,10 +118,17 @@ def simulate_force(
         unknown law, bad parameters, non-finite or non-1-D displacement, or bad time.
     NumericalFailure
         (a ``ValueError`` subclass) the law's local solve failed; the message names the sample
-        index, the state and the parameters.
+        index, the state and the parameters (and, for ``bouc_wen``, suggests
+        ``local_solver="robust"``).
+
+    Warns
+    -----
+    LocalSolverDeviation
+        ``local_solver="robust"`` acted at some samples (count and first indices named).
     """
     spec = get(law)
     p = spec.pack(params)
+    robust = robust_local_solve(spec, local_solver)
     u = as_history(disp, "disp")
     if not isinstance(substeps, (int, np.integer)) or substeps < 1:
         raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
@@ -68,7 +150,12 @@ def simulate_force(
     tangent = np.empty_like(u)
     sc = np.array(spec.initial_state, dtype=float)
     st = sc.copy()
-    if spec.effects:
+    deviated = None
+    if robust:
+        deviated = np.zeros(u.size, dtype=np.int64)
+        status, idx = bouc_wen.drive_robust(p, sc, st, u, t, use_time, int(substeps), force,
+                                            tangent, deviated)
+    elif spec.effects:
         status, idx = drive(spec.code, p, sc, st, u, t, use_time, int(substeps), force, tangent)
     else:  # base law: its own loop, without compiling the effect catalogue (cold start)
         status, idx = base_drive(
@@ -80,5 +167,8 @@ def simulate_force(
             f"{STATUS_MESSAGES.get(int(status), f'status {status}')}; committed state "
             f"{np.array2string(sc, precision=6)}, failed trial state "
             f"{np.array2string(st, precision=6)}; parameters {spec.as_dict(p)}"
+            + (ROBUST_HINT if status in (-1, -2) and spec.name == "bouc_wen" and not robust else "")
         )
+    if deviated is not None and deviated.any():
+        warnings.warn(deviation_warning(spec.name, np.flatnonzero(deviated)), stacklevel=2)
     return (force, tangent) if return_tangent else force

@@ -48,8 +48,8 @@ N_WORK_ROWS = 14
 _FC, _EIN, _EVIS, _EISO, _AGC = range(5)
 N_SCALARS = 10
 # entries of the per-run summary ``out``
-OUT_UPEAK, OUT_URES, OUT_VBPEAK, OUT_EISO, OUT_EERR, OUT_NSUB = range(6)
-N_OUT = 6
+OUT_UPEAK, OUT_URES, OUT_VBPEAK, OUT_EISO, OUT_EERR, OUT_NSUB, OUT_NROBUST = range(7)
+N_OUT = 7
 
 
 @njit(cache=True, inline="always")
@@ -82,7 +82,7 @@ def _factor(m, ks, cs, cg, c1, c2, W):
 
 @njit(cache=True)
 def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
-              store, W, sc, st, sc_save, S, U, VB, A, F, E, iters, levels, drift, acc, out):
+              robust, store, W, sc, st, sc_save, S, U, VB, A, F, E, iters, levels, drift, acc, out):
     """One analysis from rest; the whole step logic in one flat loop.
 
     Parameters
@@ -92,6 +92,10 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
         [kN s/m]; cg (ndof) dashpots to the ground [kN s/m]; hts (ndof-1) story heights [m].
     state0 : the law's initial state.  ag : ground acceleration [m/s^2] every ``dt`` [s].
     gamma, beta, tol, max_iter, max_levels : Newmark, Newton and subdivision settings.
+    robust : at the last subdivision level only (where the default would fail), a Bouc-Wen
+        isolator uses :func:`rrfrei.laws.bouc_wen.step_robust`; an output step where it acted
+        (OpenSees' local iteration failed) gets ``levels[k] = -1 - level`` (when storing) and is
+        counted in ``out[OUT_NROBUST]``.  Everywhere else the steps are the default ones.
     store : write the histories ``U`` (relative displacement) and ``A`` (absolute acceleration)
         (nt, ndof), ``VB`` (story-1 shear), ``F`` (isolator force), ``E`` (nt, 5: input, kinetic,
         viscous, isolator work, story strain), ``iters``, ``levels``; otherwise these are not
@@ -99,7 +103,8 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
     W, sc, st, sc_save, S : work arrays (N_WORK_ROWS x ndof, state x 3, N_SCALARS).
     drift, acc (ndof-1) : receive the peak |drift ratio| per story and the peak |absolute
         acceleration| per floor; out (N_OUT) : peak |u_0|, residual |u_0|, peak base shear,
-        isolator work, energy error, number of subdivided steps.
+        isolator work, energy error, number of subdivided steps, number of output steps where the
+        robust local solve acted.
 
     Returns
     -------
@@ -141,6 +146,7 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
     imb_max = 0.0
     ein_max = 0.0
     nsubdiv = 0
+    nrobust = 0
     cc = count * s * s
     ck = count * s
     h_fact = -1.0
@@ -151,6 +157,7 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
         n_it = 0
         status = 0
         level = 0
+        dev = False
         for level in range(max_levels + 1):
             if level == 1:  # the failed first try committed nothing: save the state at step k-1
                 for j in range(n):
@@ -223,7 +230,13 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
                     ul = W[_UT, 0] / s
                     vl = W[_VT, 0] / s
                     if code[3] == 0 and code[0] == bouc_wen.KERNEL_ID:
-                        fl, kl, status = bouc_wen.step(p, sc, ul, vl, h, st)
+                        if robust and level == max_levels:
+                            fl, kl, status = bouc_wen.step_robust(p, sc, ul, vl, h, st)
+                            if status == bouc_wen.STATUS_ROBUST:
+                                status = 0
+                                dev = True
+                        else:
+                            fl, kl, status = bouc_wen.step(p, sc, ul, vl, h, st)
                     elif code[3] == 0 and code[0] == plasticity.KERNEL_ID:
                         fl, kl, status = plasticity.step(p, sc, ul, vl, h, st)
                     elif code[3] == 0 and code[0] == elastomeric_x.KERNEL_ID:
@@ -275,16 +288,19 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
                 break
         if store:
             iters[k] = n_it
-            levels[k] = level
+            levels[k] = -1 - level if dev else level
         if status != 0:
             if store:
                 for j in range(n):
                     U[k, j] = W[_U, j]
             out[OUT_UPEAK] = umax
             out[OUT_NSUB] = nsubdiv
+            out[OUT_NROBUST] = nrobust
             return status, k
         if level > 0:
             nsubdiv += 1
+        if dev:
+            nrobust += 1
         # -- output step k: stored energies, peaks, histories
         ek = 0.0
         es = 0.0
@@ -327,6 +343,7 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
     out[OUT_EISO] = S[_EISO]
     out[OUT_EERR] = imb_max / ein_max if ein_max > 0.0 else 0.0
     out[OUT_NSUB] = nsubdiv
+    out[OUT_NROBUST] = nrobust
     return 0, -1
 
 
@@ -338,7 +355,7 @@ def work_arrays(ndof: int, state_size: int):
 
 @njit(cache=True, parallel=True)
 def batch(code, P, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
-          n_blocks, status, drift, acc, out):
+          robust, n_blocks, status, drift, acc, out):
     """Run the parameter sets ``P`` (runs, n_params) in ``n_blocks`` parallel blocks.
 
     Each block allocates its work arrays once and runs its analyses one after another (one thread
@@ -362,7 +379,7 @@ def batch(code, P, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, to
         hi = (runs * (b + 1)) // n_blocks
         for r in range(lo, hi):
             res = integrate(code, P[r], count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol,
-                            max_iter, max_levels, False, W, sc, st, sc_save, S, U, F, U, F, E, it, it,
+                            max_iter, max_levels, robust, False, W, sc, st, sc_save, S, U, F, U, F, E, it, it,
                             drift[r], acc[r], out[r])
             status[r] = res[0]
 
@@ -370,9 +387,11 @@ def batch(code, P, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, to
 # =============================================================================================
 # public API
 # =============================================================================================
-from dataclasses import dataclass  # noqa: E402
+import warnings  # noqa: E402
+from dataclasses import dataclass, field  # noqa: E402
 
 from rrfrei.laws import STATUS_MESSAGES  # noqa: E402
+from rrfrei.simulate import ROBUST_HINT, deviation_warning, robust_local_solve  # noqa: E402
 from structures import energy as _energy  # noqa: E402
 
 _DEFAULT_MAX_ITER = 50
@@ -402,6 +421,8 @@ class Response:
     energy_error : max |imbalance| / max |input energy| [-].
     newton_iterations : (n,) Newton iterations per output step (summed over substeps).
     subdivided_steps : indices of the output steps that needed substeps.
+    robust_steps : indices of the output steps where ``local_solver="robust"`` replaced
+        OpenSees' failed local iteration (a deviation from OpenSees; empty by default).
     """
 
     record: str
@@ -418,6 +439,7 @@ class Response:
     energy_error: float
     newton_iterations: np.ndarray
     subdivided_steps: np.ndarray
+    robust_steps: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     def summary(self) -> dict[str, float]:
         """Peak demands (absolute values): isolator displacement [m] and force [kN], residual
@@ -437,6 +459,7 @@ class Response:
                 float(np.mean(self.newton_iterations[1:])) if self.time.size > 1 else 0.0
             ),
             "subdivided_steps": int(self.subdivided_steps.size),
+            "robust_steps": int(self.robust_steps.size),
         }
 
 
@@ -517,6 +540,7 @@ def time_history(
     tol: float = 1e-12,
     max_iter: int = _DEFAULT_MAX_ITER,
     max_subdivisions: int = _DEFAULT_LEVELS,
+    local_solver: str = "opensees",
 ) -> Response:
     """Nonlinear time history of ``building`` under the ground acceleration ``record``.
 
@@ -534,6 +558,14 @@ def time_history(
     tol : Newton convergence on ||du||_2 [m] (OpenSees NormDispIncr).
     max_iter : Newton iterations per (sub)step before the step is subdivided.
     max_subdivisions : a failing step is retried in 2, 4, ... 2^max_subdivisions substeps.
+    local_solver : ``"opensees"`` (default): the isolator law's own OpenSees local iteration.
+        ``"robust"`` (Bouc-Wen; see :func:`rrfrei.simulate_force`): at the last subdivision level
+        only, i.e. where the default would raise, a failed (or falsely converged) OpenSees local
+        iteration is replaced by the bracketed safeguarded Newton solve of the same equation.
+        The response is the default one wherever the default completes; the output steps where
+        the robust solve
+        acted are ``Response.robust_steps`` and are named by a
+        :class:`rrfrei.simulate.LocalSolverDeviation` warning.
 
     Raises
     ------
@@ -542,6 +574,7 @@ def time_history(
     """
     g, b, t, it, lv = _options(gamma, beta, tol, max_iter, max_subdivisions)
     spec, iso, m, ks, cs, cg, hts = _model(building)
+    robust = robust_local_solve(spec, local_solver)
     p = iso.packed()
     name, ag, h = _ground(record, dt)
     n, ndof = ag.size, m.size
@@ -557,7 +590,7 @@ def time_history(
     acc_pk = np.zeros(ndof - 1)
     out = np.zeros(N_OUT)
     status, k = integrate(spec.code, p, float(iso.count), float(iso.length_scale), m, ks, cs, cg, hts,
-                          np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, True,
+                          np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, robust, True,
                           W, sc, st, sc_save, S, U, VB, A, F, E, iters, levels, drift_pk, acc_pk, out)
     if status != 0:
         raise ConvergenceError(
@@ -566,7 +599,12 @@ def time_history(
             f"t = {(k - 1) * h:.6g} s: isolator displacement {U[k - 1, 0]:.6g} m, force "
             f"{F[k - 1]:.6g} kN, base shear {VB[k - 1]:.6g} kN; law {spec.name!r} with parameters "
             f"{spec.as_dict(p)}, {iso.count} bearings, length_scale {iso.length_scale:g}"
+            + (ROBUST_HINT if status in (-1, -2) and spec.name == "bouc_wen" and not robust else "")
         )
+    robust_steps = np.flatnonzero(levels < 0)
+    if robust_steps.size:
+        warnings.warn(deviation_warning(spec.name, robust_steps, "time step"), stacklevel=2)
+    levels = np.where(levels < 0, -1 - levels, levels)
     energy = _energy.as_dict(E)
     drift = U[:, 1:] - U[:, :-1]
     return Response(
@@ -584,6 +622,7 @@ def time_history(
         energy_error=float(out[OUT_EERR]),
         newton_iterations=iters,
         subdivided_steps=np.flatnonzero(levels > 0),
+        robust_steps=robust_steps,
     )
 
 
@@ -599,6 +638,7 @@ def time_history_batch(
     max_iter: int = _DEFAULT_MAX_ITER,
     max_subdivisions: int = _DEFAULT_LEVELS,
     n_blocks: int | None = None,
+    local_solver: str = "opensees",
 ) -> dict[str, np.ndarray]:
     """Peak demands of ``building`` under ``record`` for many isolator parameter sets.
 
@@ -610,6 +650,8 @@ def time_history_batch(
     params : (m, n_params) array in the law's ``param_names`` order (law scale, before
         similitude); every row is validated by the law.
     n_blocks : number of parallel blocks (default: 4 per Numba thread, at most m).
+    local_solver : as in :func:`time_history`; ``robust_steps`` counts, per run, the output steps
+        where the robust solve acted (no warning is issued here).
 
     Returns
     -------
@@ -617,13 +659,15 @@ def time_history_batch(
     the end), ``iso_disp_max_abs`` [m] (= peak; for a failed run the largest reached before it
     failed), ``drift_peak`` (m, stories) [-], ``floor_acc_peak`` (m, stories) absolute
     [m/s^2], ``base_shear_peak`` [kN], ``iso_energy``
-    (isolator work at the end) [kN m], ``energy_error`` [-], ``subdivided_steps``, ``status``
+    (isolator work at the end) [kN m], ``energy_error`` [-], ``subdivided_steps``,
+    ``robust_steps``, ``status``
     (0 = converged) and ``converged`` (bool).  Runs that failed hold NaN demands.
     """
     import numba
 
     g, b, t, it, lv = _options(gamma, beta, tol, max_iter, max_subdivisions)
     spec, iso, m, ks, cs, cg, hts = _model(building)
+    robust = robust_local_solve(spec, local_solver)
     name, ag, h = _ground(record, dt)
     P = np.asarray(params, dtype=float)
     if P.ndim == 1:
@@ -650,7 +694,8 @@ def time_history_batch(
     res = np.zeros((runs, N_OUT))
     if runs:
         batch(spec.code, P, float(iso.count), float(iso.length_scale), m, ks, cs, cg, hts,
-              np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, nb, status, drift, acc, res)
+              np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, robust, nb, status,
+              drift, acc, res)
     ok = status == 0
     u_peak = res[:, OUT_UPEAK].copy()
     out = {
@@ -667,6 +712,7 @@ def time_history_batch(
     n_sub = res[:, OUT_NSUB].astype(np.int64)
     out["iso_disp_max_abs"] = res[:, OUT_UPEAK].copy()  # failed runs: the largest before failing
     out["subdivided_steps"] = n_sub
+    out["robust_steps"] = res[:, OUT_NROBUST].astype(np.int64)
     out["status"] = status
     out["converged"] = ok
     return out

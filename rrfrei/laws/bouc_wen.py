@@ -77,6 +77,45 @@ to rounding.  For the anchor at OpenSees' first iterate the same argument applie
 iteration 1 (our iterate differs from OpenSees' by rounding, absorbed by the margins).
 Otherwise :func:`step` (the OpenSees iteration) runs from the original trial state, so status
 and failure sample are OpenSees' own.  Forces agree with :func:`drive_exact` to ~1e-15.
+
+Robust local solve (opt-in, ``local_solver="robust"``; a deviation from OpenSees).  OpenSees'
+Newton fails (status -2) typically when an iterate lands near z = 0 with eta < 1, where
+f' ~ |z|^(eta-1) is unbounded and the steps stall, or when large steps make it cycle.
+A subtler failure: with eta < 1 an iterate near z = 0 has |f'| so large that the Newton step
+falls below 1e-12 while f is O(1), and OpenSees reports convergence at a point that is no root
+(e.g. z_C = 1e-308, du/u_y = -1, eta = 0.5, beta = 1, gamma = 0: OpenSees returns z ~ 3e-154,
+the root is -0.382).  :func:`step_robust` runs :func:`step` unchanged and, only where it fails
+(status -1 or -2) or its result is no root (f keeps its sign on z +- 1e-10 max(1, |z|),
+:func:`_near_root`), solves the same equation f(z) = 0 from the committed state by
+:func:`solve_bracketed` (returning status :data:`STATUS_ROBUST` = 1), so wherever OpenSees'
+iteration converges to a root the result is OpenSees' own, bit for bit.  The fast solver's
+steps are certified roots and are kept as they are.  Bracket: f is odd under (z, z_C, r) -> (-z, -z_C, -r),
+so with s = sgn(du), y = s z, y_C = s z_C and rho = |r| > 0::
+
+    f(y) = y - y_C - rho [1 - |y|^eta (gamma + beta sgn(y))],   z_max = (beta + gamma)^(-1/eta)
+
+(beta >= 0 and beta + gamma > 0 are enforced by the parameter bounds).  (a) y_C >= -rho:
+f(0) = -y_C - rho <= 0, f is strictly increasing on y >= 0 (both terms are), and
+f(y_C + rho) = rho (beta + gamma) (y_C + rho)^eta >= 0, f(z_max) = z_max - y_C >= 0 when
+y_C <= z_max: the root is the unique one in [0, min(z_max, y_C + rho)].  (b) y_C < -rho:
+f(0) = -y_C - rho > 0 and f(y_C) = rho [(gamma - beta) |y_C|^eta - 1] <= 0 whenever
+|y_C| <= z_max (gamma - beta <= gamma + beta): a root lies in [y_C, 0).  So from any committed
+|z_C| <= z_max (the virgin z_C = 0 included) a root exists, it is found, and |z| <= z_max again;
+the bound is invariant.  A committed state beyond the bound ((gamma - beta) |y_C|^eta > 1, only
+reachable through a spurious root that OpenSees' own iteration converged to) has f(y_C) > 0
+and f > 0 on y >= 0; on y < 0, f has one turning point at |y| = (rho (gamma - beta) eta)^(-1/(eta-1)),
+a minimum for eta > 1 (a root exists iff f <= 0 there, bracketed by it and y_C) and a maximum
+for eta < 1 (f -> -oo: the bracket is found by doubling downward from y_C); otherwise status
+-2 (no root).  On the bracket
+[a, b] with f(a) <= 0 <= f(b), safeguarded Newton (Numerical Recipes' ``rtsafe``): the
+Newton step is taken only if it stays strictly inside the bracket and at least halves the step
+before last, otherwise bisection; every evaluation shrinks the bracket.  At y = 0 (eta < 1: f'
+infinite; eta >= 1: one-sided) the step is always bisection.  It stops when the step is below
+2 DBL_EPSILON |y| or the bracket is two adjacent doubles, so the root is at rounding level
+(OpenSees stops at |dz| < 1e-12: the two agree to ~1e-12 or better where both find the root
+of the bracket).  f can have further, spurious roots on the side opposite to du when
+gamma > beta (|du|/u_y >> 1), and OpenSees' iteration sometimes converges to one (|z| > z_max);
+:func:`step_robust` keeps OpenSees' result wherever it converges, by design.
 """
 
 from dataclasses import replace
@@ -562,6 +601,225 @@ def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
         u = disp[i] if j == substeps - 1 else u_prev + du * (j + 1)
         f, kt, status = step(p, sc, u, v, dt, st)
         if status != 0:
+            return status, i
+        if not (np.isfinite(f) and np.isfinite(kt)):
+            return -3, i
+        commit(sc, st)
+        if j == substeps - 1:
+            force[i] = f
+            tangent[i] = kt
+        k += 1
+
+
+# --------------------------------------------------------------------------------------------
+# Robust local solve (opt-in; see "Robust local solve" in the module docstring)
+
+STATUS_ROBUST = 1
+"""Status of :func:`step_robust` when OpenSees' iteration failed and :func:`solve_bracketed`
+found the root instead (converged, but a deviation from OpenSees)."""
+
+ROBUST_MAX_ITER = 5000
+"""Cap on safeguarded-Newton iterations (bisection alone reaches adjacent doubles in < 2100)."""
+
+
+@njit(cache=True, inline="always")
+def _residual(y, yc, rho, eta, beta, gamma):
+    """(f(y), f'(y)) in the frame y = sgn(du) z (module docstring, "Robust local solve");
+    f' = NaN at y = 0 (infinite for eta < 1, one-sided otherwise)."""
+    a = abs(y)
+    if y > 0.0:
+        t = gamma + beta
+    elif y < 0.0:
+        t = gamma - beta
+    else:
+        return -yc - rho, np.nan
+    pe = a**eta
+    f = (y - yc) - rho * (1.0 - pe * t)
+    df = 1.0 + rho * eta * (pe / a) * t * (1.0 if y > 0.0 else -1.0)
+    return f, df
+
+
+@njit(cache=True, error_model="numpy")
+def solve_bracketed(zc, r, eta, beta, gamma):
+    """Root z of the backward-Euler equation f(z) = z - z_C - r [1 - |z|^eta (gamma + beta
+    sgn(z r))] on a bracket that contains it (module docstring, "Robust local solve").
+
+    Parameters
+    ----------
+    zc : committed hysteretic variable z_C [-].
+    r : du / u_y [-], nonzero.
+    eta, beta, gamma : Bouc-Wen exponent and coefficients (beta >= 0, beta + gamma > 0).
+
+    Returns
+    -------
+    (z, status, iterations) : status 0 (root found to rounding) or -2 (f has no root, which
+    needs a committed state beyond the bound, or the iteration cap).
+    """
+    s = 1.0 if r > 0.0 else -1.0
+    yc = s * zc
+    rho = abs(r)
+    if not (rho > 0.0 and np.isfinite(rho) and np.isfinite(yc)):
+        return zc, -2, 0
+    # a: an end with f(a) <= 0, b: an end with f(b) >= 0 (either order)
+    if yc >= -rho:  # case (a): root in [0, min(z_max, y_C + rho)], f increasing there
+        zmax = (beta + gamma) ** (-1.0 / eta)
+        a = 0.0
+        b = yc + rho
+        if yc <= zmax and zmax < b:
+            b = zmax
+    else:
+        c = gamma - beta
+        if rho * (c * abs(yc) ** eta - 1.0) <= 0.0:  # case (b): root in [y_C, 0)
+            a = yc
+            b = 0.0
+        else:
+            # committed state beyond the bound (c > 0, c |y_C|^eta > 1): f > 0 on y >= 0; on
+            # y < 0, f = y - y_C - rho + rho c |y|^eta has one turning point at |y| = a*,
+            # a* = (rho c eta)^(-1/(eta-1)): a minimum for eta > 1, a maximum for eta < 1
+            b = yc
+            ystar = -np.inf  # the turning point -a* if a minimum (eta > 1)
+            found = False
+            if eta > 1.0:
+                ystar = -((rho * c * eta) ** (-1.0 / (eta - 1.0)))
+                if ystar > yc:  # f decreases from y_C to its minimum at y*
+                    if (ystar - yc) - rho + rho * c * abs(ystar) ** eta > 0.0:
+                        return zc, -2, 0  # f > 0 everywhere: no root
+                    a = ystar
+                    found = True
+            if not found:  # f increasing on [y*, y_C]: a root below y_C, search downward
+                t = max(rho, abs(yc))
+                while True:
+                    a = yc - t
+                    floor = a <= ystar
+                    if floor:
+                        a = ystar
+                    fa = (a - yc) - rho + rho * c * abs(a) ** eta
+                    if not (np.isfinite(a) and np.isfinite(fa)):
+                        return zc, -2, 0
+                    if fa <= 0.0:
+                        break
+                    if floor:
+                        return zc, -2, 0  # f > 0 everywhere: no root
+                    b = a
+                    t *= 2.0
+    if a == b:
+        return s * a, 0, 0
+    y = yc if min(a, b) < yc < max(a, b) else a + 0.5 * (b - a)
+    dx_old = abs(b - a)
+    dx = dx_old
+    for it in range(1, ROBUST_MAX_ITER + 1):
+        f, df = _residual(y, yc, rho, eta, beta, gamma)
+        if f == 0.0:
+            return s * y, 0, it
+        if f < 0.0:
+            a = y
+        else:
+            b = y
+        lo = min(a, b)
+        hi = max(a, b)
+        newton = False
+        yn = y
+        if np.isfinite(df) and df != 0.0:
+            yn = y - f / df
+            newton = lo < yn < hi and abs(2.0 * f) <= abs(dx_old * df)
+        dx_old = dx
+        if not newton:
+            yn = lo + 0.5 * (hi - lo)
+            if yn == lo or yn == hi:  # adjacent doubles: the bracket cannot shrink further
+                return s * y, 0, it  # y, just evaluated, is one of the two
+        dx = abs(yn - y)
+        y = yn
+        if dx <= 2.0 * DBL_EPSILON * abs(y) or hi - lo <= 2.0 * DBL_EPSILON * max(abs(lo), abs(hi)):
+            return s * y, 0, it
+    return s * y, -2, ROBUST_MAX_ITER
+
+
+NEAR_ROOT = 1e-10
+"""Certificate of an OpenSees result in :func:`step_robust`: f changes sign within
+NEAR_ROOT max(1, |z|) of it (a converged Newton iterate is within ~1e-12 of its root)."""
+
+
+@njit(cache=True, inline="always")
+def _near_root(zc, r, z, eta, beta, gamma):
+    """True if f (module docstring) changes sign on [z - d, z + d], d = NEAR_ROOT max(1, |z|).
+
+    Catches OpenSees' false convergence: with eta < 1 an iterate near 0 has |f'| ~ |z|^(eta-1)
+    so large that the step |f / f'| falls below 1e-12 while f itself is O(1).
+    """
+    d = NEAR_ROOT * max(1.0, abs(z))
+    w = z - d
+    f1 = w - zc - r * (A - powabs(w, eta) * (gamma + beta * sgn(w * r)))
+    w = z + d
+    f2 = w - zc - r * (A - powabs(w, eta) * (gamma + beta * sgn(w * r)))
+    return f1 * f2 <= 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def step_robust(p, sc, u, v, dt, st):
+    """:func:`step`, and where OpenSees' iteration fails (status -1 or -2) or stops away from a
+    root (:func:`_near_root`), the root of the same equation by :func:`solve_bracketed` from
+    the committed z (status :data:`STATUS_ROBUST`).
+
+    Force and tangent as in :func:`step` (same expressions) at the bracketed root; the |z|^(eta-1)
+    cache is cleared.  Status -1 / -2 only if no bracket exists (module docstring).
+    """
+    q, kt, status = step(p, sc, u, v, dt, st)
+    k_init, qd, k0, k2, k3, mu, eta, beta, gamma = _constants(p)
+    du = u - sc[0]
+    uy = qd / k0
+    if status == 0:
+        if du == 0.0 or _near_root(sc[1], du / uy, st[1], eta, beta, gamma):
+            return q, kt, 0
+    elif status != -1 and status != -2:
+        return q, kt, status
+    z, st2, _ = solve_bracketed(sc[1], du / uy, eta, beta, gamma)
+    if st2 != 0:
+        return q, kt, status
+    st[1] = z
+    st[4] = 0.0
+    pe = abs(z) ** eta
+    dzdu = A - pe * (gamma + beta * sgn(z * du))
+    q = qd * z + k2 * u
+    kt = k0 * dzdu + k2
+    if k3 != 0.0:
+        q += k3 * sgn(u) * powabs(u, mu)
+        kt += k3 * mu * powabs(u, mu - 1.0)
+    st[2] = q
+    st[3] = kt - k_init
+    return q, kt, STATUS_ROBUST
+
+
+@njit(cache=True, error_model="numpy")
+def drive_robust(p, sc, st, disp, time, use_time, substeps, force, tangent, deviated):
+    """:func:`drive` with :func:`step_robust` in place of :func:`step`.
+
+    ``deviated`` (int64, n) receives 1 at every sample where the robust solve acted in one of
+    its sub-steps (OpenSees' iteration failed there), 0 elsewhere; elsewhere the forces are
+    those of :func:`drive`, bit for bit.  Same return contract.
+    """
+    for i in range(deviated.shape[0]):
+        deviated[i] = 0
+    c, x16, x32, stop = fast_constants(p[5])
+    if p[5] == 1.0 or p[5] == 2.0 or p[5] == 3.0:
+        x32 = 0.0
+    lim = np.array([x16, x32, stop])
+    n = disp.shape[0] * substeps
+    k = 0
+    while True:
+        if x32 > 0.0:
+            k = _fast_run(p, c, lim, sc, st, disp, k, substeps, force, tangent)
+        if k >= n:
+            return 0, -1
+        i = k // substeps
+        j = k - i * substeps
+        u_prev = disp[i - 1] if i > 0 else 0.0
+        t_prev = (time[i - 1] if i > 0 else time[0]) if use_time else 0.0
+        du, v, dt = increment(i, disp, time, use_time, substeps, u_prev, t_prev)
+        u = disp[i] if j == substeps - 1 else u_prev + du * (j + 1)
+        f, kt, status = step_robust(p, sc, u, v, dt, st)
+        if status == STATUS_ROBUST:
+            deviated[i] = 1
+        elif status != 0:
             return status, i
         if not (np.isfinite(f) and np.isfinite(kt)):
             return -3, i
