@@ -20,6 +20,7 @@ __version__ = "0.1.0"
 _LAZY = {
     "laws": ("rrfrei.laws", None),
     "simulate_force": ("rrfrei.simulate", "simulate_force"),
+    "LocalSolverDeviation": ("rrfrei.simulate", "LocalSolverDeviation"),
     "protocols": ("rrfrei.protocols", None),
     "energy": ("rrfrei.energy", None),
     "read_test": ("rrfrei.io", "read_test"),
