@@ -116,6 +116,10 @@ def _run(a) -> int:
             "uncertainty_notes": list(r.uncertainty_notes), "evaluations": r.evaluations}, indent=2))
         for note in r.uncertainty_notes:
             print(f"warning: {note}", file=sys.stderr)
+        if r.f_total > len(tests):  # each test's f > 1 on average: worse than predicting zero stress
+            print(f"warning: f_total = {r.f_total:.3g} is worse than a zero prediction ({len(tests)}); "
+                  "the box does not fit these data (the default is the study's polyurethane box, "
+                  "C10 >= 1 MPa): try --bounds auto", file=sys.stderr)
         _figure(r.params, tests, out / "fit.png")
         print(json.dumps(doc) if a.json else r.summary())
     elif a.cmd == "predict":

@@ -208,9 +208,9 @@ def test_twelve_test_multirate_fit_recovers_the_identifiable_combinations(tmp_pa
     code = main(["fit", *paths, "--bounds", "auto", "--out", str(tmp_path / "out"), "--max-evals", "3000"])
     assert code == 0
     doc = json.loads((tmp_path / "out" / "params.json").read_text())
+    assert doc["flow_parameterisation"] == ["Dth_B", "Dth_C"]
+    # at the noise floor: no worse than the true parameters on the noisy data
+    assert doc["f_total"] <= 1.02 * float(np.sum(objective(ACRYLIC, acrylic, rtol=1e-8)))
     truth = combinations(ACRYLIC, rate=doc["ref_rate"])
-    got = doc["combinations"]
-    for n in ("mu0_A", "Peq(1.3)"):
-        assert got[n] == pytest.approx(truth[n], rel=0.1), n
-    assert got["mu0_A"] + got["mu0_B"] + got["mu0_C"] == pytest.approx(
-        truth["mu0_A"] + truth["mu0_B"] + truth["mu0_C"], rel=0.1)
+    for n, v in truth.items():  # moduli, flow thresholds at r_ref, equilibrium stresses
+        assert doc["combinations"][n] == pytest.approx(v, rel=0.05), n
