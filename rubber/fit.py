@@ -45,9 +45,9 @@ REF_RATE = 0.093
 """Default reference rate r_ref (1/s) of the flow thresholds: the study's engineering strain rate."""
 DTH_RANGE = (1e-3, 10.0)
 """Flow-threshold box of ``bounds="auto"`` as multiples of the data's largest |P| (see module docstring)."""
-X_LOCK_MAX = 0.9
-"""Largest chain stretch ratio x = lambda_ch / sqrt(N) allowed at the data's largest stretch by the
-``bounds="auto"`` lower bound of N (see :func:`auto_bounds`)."""
+N_LOCK_MIN = 4.0
+"""Lower bound of N in ``bounds="auto"``: the chain at rest is at most half-way to its lock,
+x = lambda_ch / sqrt(N) = 1 / sqrt(N) <= 1/2, i.e. lambda_lock = sqrt(N) >= 2 (see :func:`auto_bounds`)."""
 _EVAL_ERRORS = (ValueError, ArithmeticError)  # ZeroDivisionError, OverflowError, FloatingPointError
 
 
@@ -129,15 +129,16 @@ def auto_bounds(tests: list[Test]) -> dict:
     * flow: thresholds ``Dth_B``, ``Dth_C`` in [1e-3 S, 10 S] (MPa; S = largest |P| of the data) at the
       reference rate ``ref_rate`` = :func:`loading_rate` instead of C1 (module docstring; C1 follows from
       C1 = r_ref / (c_tau xi^C2 D^C3)), so the box cannot reach run-away flow constants;
-    * locking: N in [N_lo, max(5, 2 I1(lambda_max))] with N_lo = max(1, I1(lambda_max) / (3 x_max^2)),
-      x_max = :data:`X_LOCK_MAX` = 0.9.  The Eight-Chain spring is the five-term series of the inverse
-      Langevin function in x = lambda_ch / sqrt(N), lambda_ch = sqrt(I1 / 3); the series has radius of
-      convergence x = 1, where the chain is fully extended (L^-1(x) -> infinity).  With N close to 1
-      the chain sits at its lock already at rest (x = 1/sqrt(N) = 0.98 for N = 1.0447) and beyond it
-      as soon as it is stretched, so N no longer means a locking stretch, the truncated series is far
-      outside its range and N trades off against nkT.  N_lo keeps every chain below 0.9 of its locking
-      stretch at the largest stretch of the data (a chain's elastic stretch never exceeds the applied
-      one while loading from rest), which still allows a tenfold stiffening of L^-1.
+    * locking: N in [4, max(5, 2 I1(lambda_max))] (:data:`N_LOCK_MIN`).  The Eight-Chain spring is the
+      five-term series of the inverse Langevin function L^-1(x), x = lambda_ch / sqrt(N),
+      lambda_ch = sqrt(I1 / 3), whose radius of convergence is x = 1, where the chain is fully extended
+      (L^-1 -> infinity).  With N close to 1 the chain sits at its lock already at rest
+      (x = 1/sqrt(N) = 0.98 for N = 1.0447) and beyond it as soon as it is stretched: N no longer means
+      a locking stretch, the truncated series is used far outside its range and N trades off against
+      nkT.  N >= 4 keeps the chain at rest at most half-way to its lock (x <= 1/2, where the series
+      matches L^-1 to 0.3 %, lambda_lock >= 2) and leaves every larger locking stretch to the data.
+      (A bound from the data's largest stretch, x <= 0.9 at lambda_max, was tried and rejected: a
+      flowing chain's elastic stretch is far below the applied one, so it excluded admissible N.)
     """
     s = initial_modulus(tests) / 40.0
     if not s > 0:
@@ -148,8 +149,8 @@ def auto_bounds(tests: list[Test]) -> dict:
         b[n] = (lo * s, hi * s) if n != "C10" else (0.05 * s, hi * s)
     lmax = max(float(np.max(t.stretch)) for t in tests)
     i1 = lmax**2 + 2 / lmax
-    nlo = max(1.0, i1 / (3.0 * X_LOCK_MAX**2))
-    nhi = max(5.0, 2.0 * i1, 2.0 * nlo)
+    nlo = N_LOCK_MIN
+    nhi = max(5.0, 2.0 * i1)
     smax = max(float(np.max(np.abs(t.stress))) for t in tests)
     for c in "BC":
         b["N_" + c] = (nlo, nhi)

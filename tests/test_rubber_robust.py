@@ -18,13 +18,14 @@ from rubber.__main__ import main
 from rubber.fit import (
     DTH_RANGE,
     FAIL_F,
-    X_LOCK_MAX,
+    N_LOCK_MIN,
     _resolve_bounds,
     _Space,
     auto_bounds,
     c1_from_threshold,
     fisher_report,
 )
+from rubber.io import load_vhb4910
 from rubber.study import BOX, multirate_tests, synthetic_test, write_kpa_csv
 
 # the parameter set of issue 16.3 at which the 12-test acrylic fit died (ZeroDivisionError in the
@@ -143,14 +144,14 @@ def test_a_user_box_may_name_flow_thresholds():
 
 
 # --- (c) the locking stretch ---------------------------------------------------------------------
-def test_auto_box_keeps_chains_below_their_lock_at_the_largest_stretch(acrylic):
+def test_auto_box_keeps_the_locking_stretch_away_from_n_equal_1(acrylic):
+    """N = 1.0447 of the issue puts the chain at rest at x = 1/sqrt(N) = 0.98 of its lock; the auto box
+    starts at N = 4 (x <= 1/2 at rest) and reaches 2 I1(lambda_max)."""
     b = auto_bounds(acrylic)
-    i1 = 3.0**2 + 2 / 3.0  # lambda_max = 3
     for c in "BC":
-        lo, hi = b["N_" + c]
-        assert lo == pytest.approx(i1 / (3 * X_LOCK_MAX**2)) and lo < hi
-        assert math.sqrt(i1 / 3 / lo) == pytest.approx(X_LOCK_MAX)
-    assert not b["N_B"][0] <= FAILING.N_B  # N_B = 1.0447 of the issue is excluded
+        assert b["N_" + c] == pytest.approx((N_LOCK_MIN, 2 * (3.0**2 + 2 / 3.0)))
+        assert 1 / math.sqrt(b["N_" + c][0]) <= 0.5
+    assert not b["N_B"][0] <= FAILING.N_B
 
 
 # --- 16.4: the uncertainty step at a bound ----------------------------------------------------
@@ -164,6 +165,18 @@ def test_fisher_at_a_parameter_on_its_bound_stays_inside_and_is_finite():
     assert math.isfinite(rel["C3_B"]) and rel["C3_B"] > 0
     assert any(n.startswith("C3_B: one-sided") for n in notes)
     assert any(n.startswith("C1_C: one-sided") for n in notes)
+
+
+def test_fisher_on_the_vhb_data_at_a_default_box_point_on_five_bounds():
+    """The bundled VHB 4910 test with the study's default box: the default-bounds fit ends with C10,
+    nkt_B, nkt_C on their lower bounds; C3_B = 1 and C1_B = 1e-6 (lower bounds) added as in the issue
+    ('C3 = 0.9999000050206774: expected >= 1.0')."""
+    p = PRFParams(C10=1.0, C20=-0.0695, C30=0.00133, nkt_B=0.01, N_B=3.26, C1_B=1e-6, C2_B=-1.0, C3_B=1.0,
+                  nkt_C=0.01, N_C=3.28, C1_C=1.05e-6, C2_C=-1.0, C3_C=8.52)
+    fim, corr, rel, notes = fisher_report(p, [load_vhb4910()], FREE, bounds=BOX)
+    assert all(math.isfinite(rel[n]) for n in FREE)
+    for n in ("C10", "nkt_B", "C1_B", "C3_B", "nkt_C"):
+        assert any(x.startswith(f"{n}: one-sided") for x in notes), n
 
 
 def test_fisher_gives_nan_with_a_reason_where_no_step_fits():
