@@ -1,5 +1,5 @@
 """Command line: ``python -m rubber fit|predict|cases|cards|gap`` (user errors: one line on stderr,
-exit 2)."""
+exit 2; numerical failures (``rrfrei.errors.NUMERICAL_ERRORS``): one line naming what failed, exit 1)."""
 
 from __future__ import annotations
 
@@ -103,13 +103,23 @@ def _run(a) -> int:
     if a.cmd == "fit":
         tests = [read_test(x) for x in a.tests]
         bounds = _read_bounds(a.bounds)
-        r = fit(tests, bounds=bounds, seed=a.seed, restarts=a.restarts, max_evals=a.max_evals)
         out = Path(a.out)
         out.mkdir(parents=True, exist_ok=True)
+        r = fit(tests, bounds=bounds, seed=a.seed, restarts=a.restarts, max_evals=a.max_evals)
+        # the fit is written before anything that could still fail (the figure); the uncertainty step
+        # inside fit() never raises: its failures are NaN rel_sigma with reasons in "uncertainty_notes"
         doc = {"params": r.params.as_dict(), "f": r.f, "f_total": r.f_total}
-        (out / "params.json").write_text(json.dumps({**doc, "combinations": r.combinations,
-                                                     "rel_sigma": r.rel_sigma, "evaluations": r.evaluations},
-                                                    indent=2))
+        rel = {n: (None if v != v else v) for n, v in r.rel_sigma.items()}  # NaN -> null (strict JSON)
+        (out / "params.json").write_text(json.dumps({
+            **doc, "combinations": r.combinations, "ref_rate": r.ref_rate,
+            "flow_parameterisation": list(r.flow_thresholds) or "C1", "rel_sigma": rel,
+            "uncertainty_notes": list(r.uncertainty_notes), "evaluations": r.evaluations}, indent=2))
+        for note in r.uncertainty_notes:
+            print(f"warning: {note}", file=sys.stderr)
+        if r.f_total > len(tests):  # each test's f > 1 on average: worse than predicting zero stress
+            print(f"warning: f_total = {r.f_total:.3g} is worse than a zero prediction ({len(tests)}); "
+                  "the box does not fit these data (the default is the study's polyurethane box, "
+                  "C10 >= 1 MPa): try --bounds auto", file=sys.stderr)
         _figure(r.params, tests, out / "fit.png")
         print(json.dumps(doc) if a.json else r.summary())
     elif a.cmd == "predict":
@@ -210,10 +220,15 @@ def _cases_figure(r, tests, path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from rrfrei.errors import NUMERICAL_ERRORS, is_numerical
+
     a = _parser().parse_args(argv)
     try:
         return _run(a)
-    except (UserError, ValueError, OSError) as exc:
+    except (UserError, ValueError, OSError, *NUMERICAL_ERRORS) as exc:
+        if is_numerical(exc):  # NumericalFailure subclasses ValueError: test it first
+            print(f"error: numerical failure ({type(exc).__name__}): {exc}".splitlines()[0], file=sys.stderr)
+            return 1
         print(f"error: {exc}".splitlines()[0], file=sys.stderr)
         return 2
 

@@ -15,6 +15,13 @@ a safeguarded scalar Newton solve per stage (bisection inside the bracket [b, ln
 halving when 1 - c h df/du <= 0 or Newton fails) and steps that land on every sample of lambda(t)
 (lambda is piecewise linear between samples, so every kink is a step boundary).
 
+Robustness (issue 16.3): a stage whose root would leave |u| <= U_MAX (lambda_v = e^50, far beyond
+any physical viscous stretch) is rejected like a failed Newton solve; when the bracket collapses on a
+very stiff chain (|d(du/dt)/du| ~ 1e15 and more) the stage rate is taken from the implicit relation
+f = (v - b) / (c h) rather than re-evaluated, so round-off in v is not amplified into the error
+estimate; and a chain stops with "too many steps" after MAX_STEPS_BASE + MAX_STEPS_PER_SAMPLE m
+attempted steps (m samples), so a runaway parameter set costs a fraction of a second, not minutes.
+
 Status codes: 0 ok, 1 step size underflow, 2 too many steps, 3 non-finite state.
 """
 
@@ -32,6 +39,9 @@ LTE = abs((-3.0 * GAMMA**2 + 4.0 * GAMMA - 2.0) / (12.0 * (2.0 - GAMMA)))
 A_EC = (0.5, 1.0 / 20.0, 11.0 / 1050.0, 19.0 / 7000.0, 519.0 / 673750.0)
 B1, B2, B3, B4, B5 = 0.5, 2.0 / 20.0, 33.0 / 1050.0, 76.0 / 7000.0, 2595.0 / 673750.0
 LOG_CAP = 600.0  # cap of ln|rate| (guards tau^C3 overflow during trial iterates)
+U_MAX = 50.0  # |ln lambda_v| beyond which a stage is rejected (exp(2 U_MAX) stays finite)
+MAX_STEPS_BASE = 20_000  # attempted steps per chain: MAX_STEPS_BASE + MAX_STEPS_PER_SAMPLE * m
+MAX_STEPS_PER_SAMPLE = 200
 
 OK, UNDERFLOW, TOO_MANY, NONFINITE = 0, 1, 2, 3
 STATUS_TEXT = {
@@ -116,8 +126,12 @@ def _stage(b, c, h, lam, v0, nkt, n, a, c2, c3, xi):
     when 1 - c h df/du <= 0 at the root (then the caller halves the step).
     """
     ueq = math.log(lam)
-    lo = min(b, ueq)
-    hi = max(b, ueq)
+    if not (math.isfinite(b) and math.isfinite(ueq)):
+        return b, 0.0, 0.0, False
+    lo = max(min(b, ueq), -U_MAX)
+    hi = min(max(b, ueq), U_MAX)
+    if lo > hi:
+        return b, 0.0, 0.0, False
     v = v0
     if v < lo or v > hi:
         v = 0.5 * (lo + hi)
@@ -126,8 +140,13 @@ def _stage(b, c, h, lam, v0, nkt, n, a, c2, c3, xi):
         f, df, d = flow_rate(v, lam, nkt, n, a, c2, c3, xi)
         g = v - b - c * h * f
         dg = 1.0 - c * h * df
-        if abs(g) <= tol or hi - lo <= tol:
+        if abs(g) <= tol:
             return v, f, d, dg > 0.0
+        if hi - lo <= tol:
+            # collapsed bracket on a very stiff chain: the rate consistent with the stage equation;
+            # a root pinned at the U_MAX clamp is no root (reject the step)
+            pinned = (hi >= U_MAX and g < 0.0) or (lo <= -U_MAX and g > 0.0)
+            return v, (v - b) / (c * h), d, dg > 0.0 and not pinned
         if g > 0.0:
             hi = v
         else:
@@ -171,12 +190,15 @@ def integrate_chain(time, lam, nkt, n, a, c2, c3, xi, rtol, u_out, d_out, diss_o
     cb = (1.0 - g) / (2.0 - g)
     w1 = 1.0 / (g * (2.0 - g))
     w0 = (1.0 - g) ** 2 / (g * (2.0 - g))
+    max_steps = MAX_STEPS_BASE + MAX_STEPS_PER_SAMPLE * m
     for i in range(m - 1):
         t0 = time[i]
         t1 = time[i + 1]
         slope = (lam[i + 1] - lam[i]) / (t1 - t0)
         t = t0
         while t < t1:
+            if nacc + nrej > max_steps:
+                return TOO_MANY, nacc, nrej
             last = False
             hs = h
             if t + hs >= t1 - 1e-12 * (1.0 + abs(t1)):
@@ -217,8 +239,6 @@ def integrate_chain(time, lam, nkt, n, a, c2, c3, xi, rtol, u_out, d_out, diss_o
             hn = hs * max(0.2, fac)
             if not last or hn > h:
                 h = hn
-            if nacc > 50_000_000:
-                return TOO_MANY, nacc, nrej
         u_out[i + 1] = u
         d_out[i + 1] = d0
         diss_out[i + 1] = diss

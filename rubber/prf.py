@@ -19,6 +19,8 @@ from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
+from rrfrei.errors import NumericalFailure
+
 from . import integrate as _k
 
 TAU_DEFS = ("frobenius", "mises")
@@ -268,7 +270,7 @@ def simulate(params: PRFParams | PRFModel, time, stretch, *, tau: str = "frobeni
     diss = np.zeros((k, m))
     st, na, nr = _k.simulate_kernel(t, lam, eq, ch, float(rtol), u, dch, diss)
     if st != _k.OK:
-        raise ValueError(f"integration failed: {_k.STATUS_TEXT[st]} (model {model})")
+        raise NumericalFailure(f"integration failed: {_k.STATUS_TEXT[st]} (model {model})")
     cauchy = dch.sum(axis=0)
     lv = np.exp(u)
     stored = np.array([_k.yeoh_energy(x, *eq) for x in lam])

@@ -92,3 +92,17 @@ def protocol2(levels: tuple[float, ...] = (1.1, 1.2, 1.3), hold: float = 60.0, r
         t.append(t[-1] + abs(lam[-1] - 1.0) / rate)
         lam.append(1.0)
     return _sample(t, lam, dt)
+
+
+def load_unload(lam_max: float, rate: float, *, dlam: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
+    """One load-unload cycle 1 -> ``lam_max`` -> 1 at a constant stretch rate ``rate`` (1/s).
+
+    Samples every ``dlam`` of stretch (the reversal is a sample).  Returns (time s, stretch).
+    """
+    _rate(rate)
+    if not lam_max > 1:
+        raise ValueError(f"lam_max = {lam_max!r}: expected a stretch > 1")
+    if not 0 < dlam < lam_max - 1:
+        raise ValueError(f"dlam = {dlam!r}: expected 0 < dlam < lam_max - 1")
+    t_up = (lam_max - 1.0) / rate
+    return _sample([0.0, t_up, 2.0 * t_up], [1.0, lam_max, 1.0], dlam / rate)

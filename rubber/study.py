@@ -94,3 +94,45 @@ def synthetic_test(params: PRFParams, protocol: str = "p1", *, noise: float = 0.
     if noise:
         p = p + np.random.default_rng(seed).normal(0.0, noise, p.size)
     return Test(f"synthetic_{protocol}", t, lam, p)
+
+
+#: a soft acrylic-elastomer-like parameter set (kPa-scale stresses) for the multi-rate data set; chains
+#: ordered C1_B <= C1_C as the fit orders them.  Flow thresholds at 0.0311 /s: 2.07 kPa (B, C3 = 2)
+#: and 7.09 kPa (C, C3 = 4); small-strain moduli 16.0 / 26.2 / 13.0 kPa (A / B / C).
+ACRYLIC = PRFParams(C10=0.008, C20=-1.0e-4, C30=1.0e-5,
+                    nkt_B=0.025, N_B=15.0, C1_B=70.0, C2_B=-1.0, C3_B=2.0,
+                    nkt_C=0.012, N_C=8.0, C1_C=1.7e5, C2_C=-1.0, C3_C=4.0, xi=5e-3)
+
+
+def multirate_tests(params: PRFParams = ACRYLIC, rates: tuple[float, ...] = (0.01, 0.03, 0.1),
+                    stretches: tuple[float, ...] = (1.5, 2.0, 2.5, 3.0), *, noise: float = 0.01,
+                    seed: int = 0, dlam: float = 0.02) -> list[Test]:
+    """Load-unload tests at every (rate, maximum stretch): ``len(rates) x len(stretches)`` tests.
+
+    Nominal stress from :func:`rubber.simulate` (rtol 1e-9) plus Gaussian noise of standard deviation
+    ``noise`` times each test's peak stress (seeded: test i uses ``seed + i``).  Names
+    ``r{rate}_l{stretch}``.
+    """
+    from .prf import simulate
+    from .protocols import load_unload
+
+    out = []
+    for r in rates:
+        for lm in stretches:
+            t, lam = load_unload(lm, r, dlam=dlam)
+            p = simulate(params, t, lam, rtol=1e-9).nominal
+            if noise:
+                rng = np.random.default_rng(seed + len(out))
+                p = p + rng.normal(0.0, noise * float(np.max(np.abs(p))), p.size)
+            out.append(Test(f"r{r:g}_l{lm:g}", t, lam, p))
+    return out
+
+
+def write_kpa_csv(path, test: Test) -> None:
+    """Write a :class:`Test` as CSV with columns ``time_s, stretch, stress_kPa`` (the lab's format)."""
+    from pathlib import Path
+
+    with Path(path).open("w") as fh:
+        fh.write("time_s,stretch,stress_kPa\n")
+        for a, b, c in zip(test.time, test.stretch, test.stress):
+            fh.write(f"{float(a)!r},{float(b)!r},{float(c) * 1e3!r}\n")
