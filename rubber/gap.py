@@ -41,7 +41,7 @@ from rrfrei.gap.model import LEVEL, FitResult, GapModel, Prediction, white_noise
 from rrfrei.gap.residuals import gap, systematic_gap
 
 from . import integrate as _k
-from .fit import DEFAULT_FIXED, FAIL_F, _resolve_bounds, _run_cma, _Space
+from .fit import _EVAL_ERRORS, DEFAULT_FIXED, FAIL_F, _resolve_bounds, _run_cma, _Space
 from .io import Test
 from .prf import PARAM_NAMES, PRFModel, PRFParams, _as_model, check_history
 
@@ -410,7 +410,10 @@ class RubberModel(GapModel):
             out = []
             for t, sc in zip(tests, scale):
                 f = np.empty(t.time.size)
-                st = augmented_nominal(t.time, t.stretch, eq, ch, self.rtol, s, d, beta, f)
+                try:  # a kernel exception (ZeroDivisionError, overflow) is a bad point, not the end
+                    st = augmented_nominal(t.time, t.stretch, eq, ch, self.rtol, s, d, beta, f)
+                except _EVAL_ERRORS:
+                    st = -1
                 if st != _k.OK or not np.all(np.isfinite(f)):
                     out.append(np.full(t.time.size, big))
                 else:
