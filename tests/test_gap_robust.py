@@ -266,6 +266,18 @@ def test_a_laplace_covariance_from_a_non_finite_jacobian_is_a_numerical_failure_
         _laplace_cov(J, 1.0, 2, "law 'x' on test 'y'")
 
 
+def test_a_laplace_precision_singular_in_floating_point_is_inverted_with_the_ridge_and_says_so():
+    """Two collinear Jacobian columns of size 1e10 (a parameter pair stuck on the failure plateau):
+    J^T J + I loses its unit ridge to rounding and np.linalg.inv raises "Singular matrix"."""
+    J = np.full((4, 2), 1e10)
+    with pytest.raises(np.linalg.LinAlgError):
+        np.linalg.inv(J.T @ J + np.eye(2))
+    cov, note = _laplace_cov(J, 1.0, 2, "law 'x' on test 'y'")
+    assert np.all(np.isfinite(cov)) and np.all(np.linalg.eigvalsh(cov) <= 1.0 + 1e-12)
+    assert "singular in floating point" in note and "law 'x' on test 'y'" in note
+    assert _laplace_cov(np.eye(2), 1.0, 2, "w") == (pytest.approx(np.eye(2) / 2), "")
+
+
 def test_an_isolator_fit_saved_for_a_checkpoint_restores_to_the_same_predictions():
     test, fit = _p1()
     model = IsolatorModel("plasticity")

@@ -570,6 +570,9 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
             + (f"; not evaluated: {', '.join(untried)}" if untried else "")
             + ("; combination search cut short" if stopped else ""))
         notes.append(budget_message)
+    for f in fits.values():
+        if getattr(f, "note", ""):
+            notes.append(f.note)
     if ck.reused:
         notes.append(f"reused {len(ck.reused)} finished fits from the checkpoint folder "
                      f"({', '.join(ck.reused)})")

@@ -171,6 +171,7 @@ class IsolatorFit(FitResult):
     noise: float
     free: tuple[str, ...]
     seed: int = 0
+    note: str = ""  # e.g. a regularised Laplace covariance
     _cache: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -296,13 +297,15 @@ class IsolatorModel(GapModel):
     def fit_state(self, fit: IsolatorFit) -> dict[str, np.ndarray]:
         return {"law": np.array(fit.spec.name), "p_opt": fit.p_opt, "P": fit.P, "sig": fit.sig,
                 "sigma": np.array(fit.sigma), "noise": np.array(fit.noise),
-                "free": np.array(fit.free, dtype=str), "seed": np.array(fit.seed)}
+                "free": np.array(fit.free, dtype=str), "seed": np.array(fit.seed),
+                "note": np.array(fit.note)}
 
     def restore(self, state: Mapping[str, np.ndarray]) -> IsolatorFit:
         return IsolatorFit(spec=get(str(state["law"])), p_opt=np.asarray(state["p_opt"], dtype=float),
                            P=np.asarray(state["P"], dtype=float), sig=np.asarray(state["sig"], dtype=float),
                            sigma=float(state["sigma"]), noise=float(state["noise"]),
-                           free=tuple(str(x) for x in state["free"]), seed=int(state["seed"]))
+                           free=tuple(str(x) for x in state["free"]), seed=int(state["seed"]),
+                           note=str(state["note"]) if "note" in state else "")
 
     def fit(self, data: ShearTest, *, seed: int = 0,
             start: FitResult | Sequence[FitResult] | None = None,
@@ -413,7 +416,7 @@ class IsolatorModel(GapModel):
         if not rss > 0.0 or not math.isfinite(rss):
             raise NumericalFailure(f"Laplace posterior of {where}: residual sum of squares at the "
                                    f"optimum is {rss!r} (expected finite > 0)")
-        cov = _laplace_cov(best.jac, rss / max(n - k, 1), k, where)
+        cov, note = _laplace_cov(best.jac, rss / max(n - k, 1), k, where)
         # common random numbers: parameter j of the spec always gets the same normal column, so
         # nested laws (base vs base+effect) are compared with little Monte Carlo noise
         S = self.draws
@@ -445,25 +448,36 @@ class IsolatorModel(GapModel):
         sig = np.sqrt(rss_s / np.random.default_rng([seed, 999]).chisquare(n, size=S))
         self.last_ess = float(1.0 / np.sum(w**2))
         return IsolatorFit(spec=spec, p_opt=p_opt, P=P, sig=sig, sigma=sigma, noise=white_noise(r),
-                           free=free, seed=seed)
+                           free=free, seed=seed, note=note)
 
 
-def _laplace_cov(J: np.ndarray, s2: float, k: int, where: str) -> np.ndarray:
-    """``(J^T J / s2 + I)^-1`` in scaled coordinates; a NumericalFailure naming ``where`` if the
-    Jacobian is not finite or the matrix is singular."""
+def _laplace_cov(J: np.ndarray, s2: float, k: int, where: str) -> tuple[np.ndarray, str]:
+    """``(J^T J / s2 + I)^-1`` in scaled coordinates, and a note ("" unless regularised).
+
+    When the precision is singular in floating point (collinear Jacobian columns of size > 1e8,
+    where the unit ridge is lost to rounding: ``np.linalg.inv`` raises "Singular matrix"), it is
+    inverted through its eigen-decomposition with the eigenvalues clipped at the ridge (1), the
+    exact-arithmetic lower bound, and the note says so.  A non-finite Jacobian is a
+    :class:`NumericalFailure` naming ``where``.
+    """
     if not k:
-        return np.zeros((0, 0))
+        return np.zeros((0, 0)), ""
     J = np.asarray(J, dtype=float)
     if not np.all(np.isfinite(J)):
         raise NumericalFailure(f"Laplace covariance of {where}: the Jacobian at the optimum is not finite")
+    A = J.T @ J / s2 + np.eye(k)
+    if not np.all(np.isfinite(A)):
+        raise NumericalFailure(f"Laplace covariance of {where}: J^T J / s^2 overflows")
     try:
-        cov = np.linalg.inv(J.T @ J / s2 + np.eye(k))
-    except np.linalg.LinAlgError as exc:
-        raise NumericalFailure(f"Laplace covariance of {where}: J^T J / s^2 + I is singular "
-                               f"({exc})") from None
-    if not np.all(np.isfinite(cov)):
-        raise NumericalFailure(f"Laplace covariance of {where}: not finite")
-    return cov
+        cov = np.linalg.inv(A)
+        if np.all(np.isfinite(cov)):
+            return cov, ""
+    except np.linalg.LinAlgError:
+        pass
+    w, V = np.linalg.eigh(0.5 * (A + A.T))
+    cov = (V / np.maximum(w, 1.0)) @ V.T
+    return cov, (f"Laplace precision of {where} singular in floating point: inverted with its "
+                 "eigenvalues clipped at the ridge (1)")
 
 
 def _mid(p) -> float:
