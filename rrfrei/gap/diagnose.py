@@ -600,7 +600,7 @@ def _as_test(t, what: str) -> ShearTest:
 
 def diagnose_gap(test, law: str = "bouc_wen", *, holdout: Sequence = (), effects: Sequence[str] | None = None,
                  fixed: dict | None = None, draws: int = 200, seed: int = 0, combine: bool = True,
-                 progress: bool = True, time_budget: float | TimeBudget | None = None,
+                 progress: bool = False, time_budget: float | TimeBudget | None = None,
                  checkpoint: str | os.PathLike | None = None) -> GapReport:
     """Sim-to-real gap diagnosis of ``law`` calibrated on ``test`` (isolator laws).
 
@@ -614,7 +614,9 @@ def diagnose_gap(test, law: str = "bouc_wen", *, holdout: Sequence = (), effects
     fixed : base-law parameters held fixed (e.g. ``{"alpha2": 0.0}``).
     draws : Laplace posterior draws per fit.
     seed : seed of all fits and draws.
-    progress : tqdm progress bar on stderr over the steps, with a remaining-time estimate.
+    progress : tqdm progress bar on stderr over the steps, with a remaining-time estimate (off by
+        default so that callers with their own bars, e.g. ``rrfrei demo``, show one at a time;
+        ``rrfrei gap`` turns it on unless ``--no-progress``).
     time_budget : wall-clock limit [s] (``None``: no limit); when reached, the diagnosis ends
         with the effects evaluated so far and lists the others (see :func:`diagnose`).
     checkpoint : folder where finished fits are saved and reused by a rerun (``None``: none).
