@@ -12,7 +12,29 @@ EXAMPLE = """\
 Example:
   rrfrei gap P1.csv --law bouc_wen --holdout P2.csv P3.csv P4.csv --out gap-report --json
   rrfrei gap protocol1 --law plasticity --holdout protocol2 --out gap   # bundled synthetic tests
+  rrfrei gap loop.csv --law bouc_wen --time-budget 1800 --out gap   # rerun with the same --out resumes
+
+Exit status: 0 a report was written (possibly an incomplete diagnosis: see its first lines);
+1 the baseline could not be fitted (numerical failure, or the time budget ran out during it);
+2 a user error (file, column, law, effect, option).
 """
+
+DEFAULT_BUDGET = 600.0
+"""Default wall-clock budget of ``rrfrei gap`` [s]."""
+
+
+def time_budget_arg(text: str) -> float | None:
+    """``--time-budget`` value: seconds > 0, or ``none`` for no limit."""
+    if text.strip().lower() in ("none", "inf", "infinite"):
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0 or value != value:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0 or 'none', got {text!r}")
+    return value
+
 
 
 def register(sub) -> None:
@@ -32,19 +54,37 @@ def register(sub) -> None:
     p.add_argument("--out", default="gap-report", metavar="DIR", help="output folder")
     p.add_argument("--seed", type=int, default=0, help="seed of fits and draws (default 0)")
     p.add_argument("--json", action="store_true", help="print the JSON summary on stdout")
+    p.add_argument("--time-budget", type=time_budget_arg, default=DEFAULT_BUDGET, metavar="SECONDS|none",
+                   help=f"wall-clock limit (default {DEFAULT_BUDGET:.0f} s): when reached, report the "
+                        "effects evaluated so far and list the others as not evaluated; 'none': no limit")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     add_column_args(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from pathlib import Path
+
+    from rrfrei.budget import BudgetExceeded, TimeBudget
     from rrfrei.gap import diagnose_gap
     from rrfrei.gap.report import write_report
 
+    budget = TimeBudget(args.time_budget, what="rrfrei gap", option="--time-budget")
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
     test = load(args.test, args)
     holdout = [load(h, args) for h in args.holdout]
-    rep = diagnose_gap(test, args.law, holdout=holdout, effects=args.effects, seed=args.seed)
+    try:
+        rep = diagnose_gap(test, args.law, holdout=holdout, effects=args.effects, seed=args.seed,
+                           progress=not args.no_progress, time_budget=budget,
+                           checkpoint=Path(args.out) / "checkpoint")
+    except BudgetExceeded as exc:
+        print(str(exc), file=sys.stderr)
+        return 1
+    for e, why in rep.skipped.items():
+        print(f"rrfrei gap: effect {e} skipped: {why}", file=sys.stderr)
+    if rep.budget_message:
+        print(rep.budget_message, file=sys.stderr)
     md = write_report(rep, args.out)
     if args.json:
         json.dump(rep.as_dict(), sys.stdout, indent=2)

@@ -152,5 +152,14 @@ CATALOGUE: dict[str, EffectInfo] = {
 
 
 def screen_all(ctx: ScreenContext) -> dict[str, float]:
-    """Signature score of every catalogue effect (NaN: cannot be judged, e.g. rate without time)."""
-    return {name: float(info.screen(ctx)) for name, info in CATALOGUE.items()}
+    """Signature score of every catalogue effect (NaN: cannot be judged, e.g. rate without time,
+    or its regression failed numerically: a screen is a hint and never ends a diagnosis)."""
+    from rrfrei.errors import NUMERICAL_ERRORS
+
+    out = {}
+    for name, info in CATALOGUE.items():
+        try:
+            out[name] = float(info.screen(ctx))
+        except NUMERICAL_ERRORS:
+            out[name] = float("nan")
+    return out

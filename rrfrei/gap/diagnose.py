@@ -22,19 +22,40 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    the diagnosis is ``none`` and the report names the tied effects;
 5. greedy combination: add the best further effect (refit from the current combination) while
    it stays significant against the current combination by the same rule.
+
+Robustness, time and restarts (issue 16.4):
+
+* a numerical failure (:data:`rrfrei.errors.NUMERICAL_ERRORS`) in one effect's refit or scoring
+  skips that effect (``GapReport.skipped``: effect -> what failed where) and the diagnosis goes
+  on; inside an optimiser a failing evaluation is a bad point, never an exception.  Only a
+  failure of the baseline fit ends it, with a :class:`~rrfrei.errors.NumericalFailure` naming
+  the step;
+* ``time_budget``: effects not started when it runs out (or whose refit it interrupts) are listed
+  in ``GapReport.not_evaluated``; the diagnosis is then marked incomplete, and a verdict of no
+  effect becomes ``"incomplete"`` (an untried effect might have closed the gap);
+* ``checkpoint``: a folder where every finished fit (baseline, early-cycle start, each refit,
+  each combination step) is saved as ``.npz``, keyed by a SHA-256 of the test data, the model
+  settings, the seed and the step, so that a rerun reuses them (the scores are recomputed).
 """
 
 from __future__ import annotations
 
+import hashlib
+import inspect
 import math
+import os
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy.special import logsumexp
 
+from rrfrei.budget import BudgetExceeded, TimeBudget
+from rrfrei.budget import progress as progress_bar
+from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap.catalogue import CATALOGUE, ScreenContext, screen_all
 from rrfrei.gap.model import FitResult, GapModel, IsolatorModel, velocity, white_noise
 from rrfrei.gap.residuals import cycle_levels, energy_error, gap, segment_table, systematic_gap
@@ -110,6 +131,21 @@ class GapReport:
     fits: dict = field(default_factory=dict, repr=False, compare=False)
     calibration_data: object = field(default=None, repr=False, compare=False)
     holdout_data: tuple = field(default=(), repr=False, compare=False)
+    skipped: dict[str, str] = field(default_factory=dict)
+    """Effects whose refit or scoring failed numerically: effect -> what failed where."""
+    not_evaluated: dict[str, str] = field(default_factory=dict)
+    """Effects not tried: effect -> why (``"time budget"``)."""
+    budget_message: str = ""
+    """The one line saying the time budget was reached ("" when it was not)."""
+    elapsed: float = float("nan")
+    """Wall time of the diagnosis [s]."""
+    reused: tuple[str, ...] = ()
+    """Steps whose fits were read from the checkpoint folder instead of refitted."""
+
+    @property
+    def complete(self) -> bool:
+        """True when every requested effect that the data can judge was refitted and scored."""
+        return not self.skipped and not self.not_evaluated
 
     def as_dict(self) -> dict:
         """The JSON summary of the CLI (gaps as NRMSE; holdout null without held-out data)."""
@@ -127,6 +163,12 @@ class GapReport:
                            "holdout": None if b[1] is None else _num(b[1].gap)},
             "gap_after": {"calibration": _num(f[0].gap),
                           "holdout": None if f[1] is None else _num(f[1].gap)},
+            "complete": self.complete,
+            "skipped": dict(self.skipped),
+            "not_evaluated": dict(self.not_evaluated),
+            "time_budget": {"reached": bool(self.budget_message), "message": self.budget_message or None,
+                            "elapsed_s": _num(self.elapsed)},
+            "reused_from_checkpoint": list(self.reused),
             "notes": list(self.notes),
         }
 
@@ -253,8 +295,85 @@ def _screen_context(model: GapModel, data, fit: FitResult) -> ScreenContext | No
                          has_time=bool(data.has_time))
 
 
+class _Checkpoint:
+    """Finished fits saved as ``.npz`` in a folder, keyed by data, model settings, seed and step."""
+
+    def __init__(self, folder, model: GapModel, data, seed: int) -> None:
+        self.model, self.seed = model, seed
+        self.key = model.checkpoint_key(data) if folder is not None else None
+        self.folder = Path(folder) if self.key is not None else None
+        self.reused: list[str] = []
+        self.error = ""
+
+    def _path(self, step: str) -> Path:
+        h = hashlib.sha256(f"{self.key}|seed={self.seed}|{step}".encode()).hexdigest()[:16]
+        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in step)
+        return self.folder / f"{safe}-{h}.npz"
+
+    def get(self, step: str) -> FitResult | None:
+        if self.folder is None:
+            return None
+        path = self._path(step)
+        if not path.is_file():
+            return None
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                fit = self.model.restore({k: z[k] for k in z.files})
+        except (OSError, ValueError, KeyError, TypeError, NotImplementedError):
+            return None  # unreadable or from another version: fit again and overwrite
+        self.reused.append(step)
+        return fit
+
+    def put(self, step: str, model: GapModel, fit: FitResult) -> None:
+        if self.folder is None:
+            return
+        state = model.fit_state(fit)
+        if state is None:
+            return
+        path = self._path(step)
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_name(path.stem + ".part.npz")
+            np.savez(tmp, **state)
+            os.replace(tmp, path)  # atomic: an interrupted run never leaves a half-written fit
+        except OSError as exc:
+            self.error = f"checkpoint not written ({type(exc).__name__}: {exc})"
+
+
+def _fit(model: GapModel, data, budget: TimeBudget, **kw) -> FitResult:
+    """``model.fit``, passing the budget to models whose optimiser can check it."""
+    budget.check()
+    if "budget" in inspect.signature(model.fit).parameters:
+        return model.fit(data, budget=budget, **kw)
+    return model.fit(data, **kw)
+
+
+def _fit_or_restore(ck: _Checkpoint, step: str, model: GapModel, data, budget: TimeBudget,
+                    **kw) -> FitResult:
+    fit = ck.get(step)
+    if fit is None:
+        fit = _fit(model, data, budget, **kw)
+        ck.put(step, model, fit)
+    return fit
+
+
+def _as_budget(time_budget) -> TimeBudget:
+    if isinstance(time_budget, TimeBudget):
+        return time_budget
+    if time_budget is not None and (isinstance(time_budget, bool)
+                                    or not isinstance(time_budget, (int, float))):
+        raise ValueError(f"time_budget = {time_budget!r}: expected a number of seconds > 0 or None")
+    return TimeBudget(time_budget, what="gap diagnosis", option="time_budget")
+
+
+def _failure(step: str, exc: BaseException) -> str:
+    return f"{step}: {type(exc).__name__}: {exc}"
+
+
 def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence[str] | None = None,
-             seed: int = 0, combine: bool = True, max_combination: int = 3) -> GapReport:
+             seed: int = 0, combine: bool = True, max_combination: int = 3, progress: bool = False,
+             time_budget: float | TimeBudget | None = None, checkpoint: str | os.PathLike | None = None
+             ) -> GapReport:
     """Diagnose the gap of ``model`` on ``data`` (see the module docstring).
 
     Parameters
@@ -264,84 +383,206 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
     effects : catalogue effects to try (default all).
     seed : seed of every fit and posterior draw.
     combine : add further effects greedily after the first.
+    max_combination : most effects in the final combination.
+    progress : a tqdm bar on stderr over the steps (baseline, each effect's refit and scoring,
+        combination steps) with its remaining-time estimate.
+    time_budget : wall-clock limit [s] (``None``: no limit) or a :class:`rrfrei.budget.TimeBudget`;
+        when it runs out the diagnosis ends with what it has (see :class:`GapReport`).
+    checkpoint : folder for finished fits (``None``: none); a rerun with the same folder, data,
+        model and seed reuses them.
+
+    Returns
+    -------
+    GapReport
+        ``complete`` is False when an effect was skipped (numerical failure) or not evaluated
+        (time budget); if no evaluated effect is significant the diagnosis is then
+        ``"incomplete"``, never ``"none"``.
+
+    Raises
+    ------
+    NumericalFailure
+        the baseline cannot be fitted or scored (the message names the step and the failure).
+    BudgetExceeded
+        the time budget ran out before the baseline fit finished (nothing to diagnose).
     """
     effects = list(CATALOGUE) if effects is None else list(effects)
     for e in effects:
         if e not in CATALOGUE:
             raise ValueError(f"unknown effect {e!r}; available: {', '.join(CATALOGUE)}")
+    budget = _as_budget(time_budget)
+    ck = _Checkpoint(checkpoint, model, data, seed)
+    name = getattr(data, "name", "data")
     notes: list[str] = []
+    skipped: dict[str, str] = {}
+    untried: dict[str, str] = {}
     sc = _Scorer(model, data, holdout)
-    base = model.fit(data, seed=seed)
-    sc.set_noise(base)
-    bm = (sc.metrics(base, [data]), sc.metrics(base, sc.holdout))
-    pr = base.predict(data)
-    where = segment_table(data, pr.mean, pr.lower, pr.upper, sc.noise[id(data)]) \
-        if isinstance(data, ShearTest) else pd.DataFrame()
-    ctx = _screen_context(model, data, base)
-    screens = screen_all(ctx) if ctx is not None else {e: float("nan") for e in CATALOGUE}
-    fits: dict[str, FitResult] = {base.name: base}
-    starts: list[FitResult] = [base]
-    early = model.early(data) if hasattr(model, "early") else None
-    if early is not None:
-        try:  # the baseline on the small early cycles: a start untouched by late effects
-            starts.append(model.fit(early, seed=seed, start=base))
-        except ValueError:
-            pass
-    scores: list[EffectScore] = []
-    for e in effects:
-        why = model.cannot_judge(e, data)
-        if why:
-            notes.append(why)
-            continue
-        fit = model.augment([e]).fit(data, seed=seed, start=starts)
-        fits[fit.name] = fit
-        scores.append(_score(sc, e, fit, base, screens.get(e, float("nan")), bm))
-    key = (lambda s: s.delta_holdout) if sc.holdout else (lambda s: s.delta_elpd)
-    ranking = tuple(sorted(scores, key=lambda s: -key(s) if math.isfinite(key(s)) else math.inf))
-    sig = [s for s in ranking if s.significant]
-    diagnosis = "none"
-    if sig:
-        diagnosis = sig[0].effect
-        if not sc.holdout and _monotone_amplitude(data):
-            win = fits[sig[0].law]
-            tied = []
-            for other in sig[1:]:
-                if other.effect in CONFOUNDED or diagnosis in CONFOUNDED:
-                    d, s = _paired(sc.loco(win), sc.loco(fits[other.law]))
-                    if not d > Z * s:
-                        tied.append(other.effect)
-            if tied:
-                notes.append(
-                    f"the calibration protocol's amplitude only grows, so {diagnosis} cannot be told "
-                    f"apart from {', '.join(tied)} on it alone: give held-out tests (--holdout)")
-                diagnosis = "none"
-    combination: list[str] = [] if diagnosis == "none" else [diagnosis]
-    steps: list[EffectScore] = []
-    final = bm
-    if combination:
-        first = next(s for s in ranking if s.effect == diagnosis)
-        steps.append(first)
-        final = (first.calibration, first.holdout)
-        current = fits[first.law]
-        pool = [s.effect for s in sig[1:]]
-        while combine and pool and len(combination) < max_combination:
-            cand = []
-            for e in pool:
-                fit = model.augment(combination + [e]).fit(data, seed=seed, start=current)
+    bar = progress_bar(1 + len(effects), f"gap {model.name}", enabled=progress, unit="step")
+    with bar:
+        bar.set_postfix_str("baseline")
+        try:
+            base = _fit_or_restore(ck, "baseline", model, data, budget, seed=seed)
+        except BudgetExceeded:
+            raise BudgetExceeded(budget.message(f"the baseline fit of {model.name!r} on {name!r} did not "
+                                                "finish: nothing to diagnose")) from None
+        except NUMERICAL_ERRORS as exc:
+            raise NumericalFailure(f"gap diagnosis: baseline fit of {model.name!r} on {name!r} failed: "
+                                   f"{type(exc).__name__}: {exc}") from exc
+        try:
+            sc.set_noise(base)
+            bm = (sc.metrics(base, [data]), sc.metrics(base, sc.holdout))
+            pr = base.predict(data)
+        except NUMERICAL_ERRORS as exc:
+            raise NumericalFailure(f"gap diagnosis: scoring the baseline {model.name!r} on {name!r} failed: "
+                                   f"{type(exc).__name__}: {exc}") from exc
+        where = pd.DataFrame()
+        if isinstance(data, ShearTest):
+            try:
+                where = segment_table(data, pr.mean, pr.lower, pr.upper, sc.noise[id(data)])
+            except NUMERICAL_ERRORS as exc:
+                notes.append(f"residual segment table skipped: {_failure('segment_table', exc)}")
+        ctx = _screen_context(model, data, base)
+        screens = screen_all(ctx) if ctx is not None else {e: float("nan") for e in CATALOGUE}
+        bar.update()
+        fits: dict[str, FitResult] = {base.name: base}
+        starts: list[FitResult] | None = None
+        scores: list[EffectScore] = []
+        for e in effects:
+            why = model.cannot_judge(e, data)
+            if why:
+                notes.append(why)
+                bar.update()
+                continue
+            if budget.expired():
+                untried[e] = "time budget"
+                bar.update()
+                continue
+            bar.set_postfix_str(f"refit +{e}")
+            step = f"refit of {model.name}+{e}"
+            try:
+                if starts is None:
+                    starts = [base]
+                    early = model.early(data) if hasattr(model, "early") else None
+                    if early is not None:
+                        try:  # the baseline on the small early cycles: a start untouched by late effects
+                            starts.append(_fit_or_restore(ck, "early", model, early, budget, seed=seed,
+                                                          start=base))
+                        except BudgetExceeded:
+                            starts = None
+                            raise
+                        except ValueError as exc:  # NumericalFailure, LinAlgError are ValueErrors
+                            notes.append(f"early-cycle start of the refits skipped: "
+                                         f"{_failure('baseline fit on the first half', exc)}")
+                aug = model.augment([e])
+                fit = _fit_or_restore(ck, f"effect-{e}", aug, data, budget, seed=seed, start=starts)
+                bar.set_postfix_str(f"score +{e}")
+                step = f"scoring of {fit.name}"
+                score = _score(sc, e, fit, base, screens.get(e, float("nan")), bm)
+            except BudgetExceeded:
+                untried[e] = "time budget"
+            except NUMERICAL_ERRORS as exc:
+                skipped[e] = _failure(step, exc)
+            else:
                 fits[fit.name] = fit
-                cand.append((_score(sc, e, fit, current, screens.get(e, float("nan")), final), fit))
-            cand = [c for c in cand if c[0].significant]
-            if not cand:
-                break
-            best, fit = max(cand, key=lambda c: key(c[0]))
-            combination.append(best.effect)
-            steps.append(best)
-            final = (best.calibration, best.holdout)
-            current = fit
-            pool.remove(best.effect)
+                scores.append(score)
+            bar.update()
+        key = (lambda s: s.delta_holdout) if sc.holdout else (lambda s: s.delta_elpd)
+        ranking = tuple(sorted(scores, key=lambda s: -key(s) if math.isfinite(key(s)) else math.inf))
+        sig = [s for s in ranking if s.significant]
+        diagnosis = "none"
+        if sig:
+            diagnosis = sig[0].effect
+            if not sc.holdout and _monotone_amplitude(data):
+                win = fits[sig[0].law]
+                tied = []
+                for other in sig[1:]:
+                    if other.effect in CONFOUNDED or diagnosis in CONFOUNDED:
+                        d, s = _paired(sc.loco(win), sc.loco(fits[other.law]))
+                        if not d > Z * s:
+                            tied.append(other.effect)
+                if tied:
+                    notes.append(
+                        f"the calibration protocol's amplitude only grows, so {diagnosis} cannot be told "
+                        f"apart from {', '.join(tied)} on it alone: give held-out tests (--holdout)")
+                    diagnosis = "none"
+        combination: list[str] = [] if diagnosis == "none" else [diagnosis]
+        steps: list[EffectScore] = []
+        final = bm
+        if combination:
+            first = next(s for s in ranking if s.effect == diagnosis)
+            steps.append(first)
+            final = (first.calibration, first.holdout)
+            current = fits[first.law]
+            pool = [s.effect for s in sig[1:]]
+            stopped = False
+            while combine and pool and len(combination) < max_combination and not stopped:
+                cand = []
+                bar.total = (getattr(bar, "total", 0) or 0) + len(pool)
+                for e in pool:
+                    if budget.expired():
+                        stopped = True
+                        break
+                    bar.set_postfix_str(f"combine +{e}")
+                    label = "+".join(combination + [e])
+                    try:
+                        fit = _fit_or_restore(ck, f"combination-{label}", model.augment(combination + [e]),
+                                              data, budget, seed=seed, start=current)
+                        cand.append((_score(sc, e, fit, current, screens.get(e, float("nan")), final), fit))
+                        fits[fit.name] = fit
+                    except BudgetExceeded:
+                        stopped = True
+                        break
+                    except NUMERICAL_ERRORS as exc:
+                        notes.append(f"combination step +{e} skipped: "
+                                     f"{_failure(f'refit of {model.name}+{label}', exc)}")
+                    bar.update()
+                if stopped:
+                    notes.append(f"combination search stopped by the time budget after "
+                                 f"{'+'.join(combination)}: further effects were not tried")
+                    break
+                cand = [c for c in cand if c[0].significant]
+                if not cand:
+                    break
+                best, fit = max(cand, key=lambda c: key(c[0]))
+                combination.append(best.effect)
+                steps.append(best)
+                final = (best.calibration, best.holdout)
+                current = fit
+                pool.remove(best.effect)
+        else:
+            stopped = False
+    missing = {**skipped, **untried}
+    if missing:
+        listed = "; ".join(f"{e}: {why}" for e, why in missing.items())
+        if diagnosis == "none":
+            diagnosis = "incomplete"
+            notes.append(f"incomplete diagnosis: no evaluated effect is significant, but "
+                         f"{len(missing)} of {len(effects)} effects were not evaluated ({listed})")
+        else:
+            notes.append(f"provisional diagnosis: {len(missing)} of {len(effects)} effects were not "
+                         f"evaluated ({listed}); one of them might score higher")
+    for e, why in skipped.items():
+        notes.append(f"effect {e} skipped: {why}")
+    budget_message = ""
+    if untried or stopped:
+        done = [s.effect for s in ranking]
+        budget_message = budget.message(
+            f"evaluated: {', '.join(done) or 'baseline only'}"
+            + (f"; not evaluated: {', '.join(untried)}" if untried else "")
+            + ("; combination search cut short" if stopped else ""))
+        notes.append(budget_message)
+    for f in fits.values():
+        if getattr(f, "note", ""):
+            notes.append(f.note)
+    if ck.reused:
+        notes.append(f"reused {len(ck.reused)} finished fits from the checkpoint folder "
+                     f"({', '.join(ck.reused)})")
+    if ck.error:
+        notes.append(ck.error)
     return GapReport(law=model.name, diagnosis=diagnosis, combination=tuple(combination), where=where,
                      screens=screens, ranking=ranking, steps=tuple(steps), baseline=bm, final=final,
-                     notes=tuple(notes), fits=fits, calibration_data=data, holdout_data=tuple(holdout))
+                     notes=tuple(notes), fits=fits, calibration_data=data, holdout_data=tuple(holdout),
+                     skipped=skipped, not_evaluated=untried, budget_message=budget_message,
+                     elapsed=budget.elapsed, reused=tuple(ck.reused))
 
 
 def _as_test(t, what: str) -> ShearTest:
@@ -358,8 +599,9 @@ def _as_test(t, what: str) -> ShearTest:
 
 
 def diagnose_gap(test, law: str = "bouc_wen", *, holdout: Sequence = (), effects: Sequence[str] | None = None,
-                 fixed: dict | None = None, draws: int = 200, seed: int = 0,
-                 combine: bool = True) -> GapReport:
+                 fixed: dict | None = None, draws: int = 200, seed: int = 0, combine: bool = True,
+                 progress: bool = False, time_budget: float | TimeBudget | None = None,
+                 checkpoint: str | os.PathLike | None = None) -> GapReport:
     """Sim-to-real gap diagnosis of ``law`` calibrated on ``test`` (isolator laws).
 
     Parameters
@@ -372,6 +614,12 @@ def diagnose_gap(test, law: str = "bouc_wen", *, holdout: Sequence = (), effects
     fixed : base-law parameters held fixed (e.g. ``{"alpha2": 0.0}``).
     draws : Laplace posterior draws per fit.
     seed : seed of all fits and draws.
+    progress : tqdm progress bar on stderr over the steps, with a remaining-time estimate (off by
+        default so that callers with their own bars, e.g. ``rrfrei demo``, show one at a time;
+        ``rrfrei gap`` turns it on unless ``--no-progress``).
+    time_budget : wall-clock limit [s] (``None``: no limit); when reached, the diagnosis ends
+        with the effects evaluated so far and lists the others (see :func:`diagnose`).
+    checkpoint : folder where finished fits are saved and reused by a rerun (``None``: none).
 
     Returns
     -------
@@ -382,7 +630,8 @@ def diagnose_gap(test, law: str = "bouc_wen", *, holdout: Sequence = (), effects
     spec = get(law)
     if spec.effects:
         raise ValueError(f"law must be a base law, got the augmented law {spec.name!r}")
+    budget = _as_budget(time_budget)  # starts before the tests are read
     cal = _as_test(test, "test")
     hos = [_as_test(h, "holdout") for h in holdout]
     return diagnose(IsolatorModel(spec, fixed=fixed, draws=draws), cal, hos, effects=effects, seed=seed,
-                    combine=combine)
+                    combine=combine, progress=progress, time_budget=budget, checkpoint=checkpoint)

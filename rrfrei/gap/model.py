@@ -33,6 +33,8 @@ systematic misfit barely changes between samples while white noise does.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
@@ -41,6 +43,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
+from rrfrei.budget import TimeBudget
+from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap.catalogue import CATALOGUE, Scales
 from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, get
@@ -51,6 +55,8 @@ __all__ = ["GapModel", "FitResult", "Prediction", "IsolatorModel", "IsolatorFit"
 
 LEVEL = 0.95
 GLOBAL_EVALS = 300
+CHECKPOINT_FORMAT = 1
+"""Version of the checkpoint files (part of their key: a change invalidates old ones)."""
 """CMA-ES evaluations per free parameter of the baseline's global search (then least squares)."""
 
 
@@ -100,6 +106,19 @@ class GapModel(ABC):
     def cannot_judge(self, effect: str, data) -> str | None:
         """Why ``effect`` cannot be judged on ``data`` (None when it can)."""
         return None
+
+    # optional: checkpointing of finished fits (the engine skips it when these return None)
+    def checkpoint_key(self, data) -> str | None:
+        """A string that identifies this model's settings and ``data`` (None: no checkpoints)."""
+        return None
+
+    def fit_state(self, fit: FitResult) -> dict[str, np.ndarray] | None:
+        """``fit`` as arrays for an ``.npz`` checkpoint (None: cannot be saved)."""
+        return None
+
+    def restore(self, state: Mapping[str, np.ndarray]) -> FitResult:
+        """The fit saved by :meth:`fit_state`."""
+        raise NotImplementedError
 
 
 # ---------------------------------------------------------------------------------------------
@@ -152,6 +171,7 @@ class IsolatorFit(FitResult):
     noise: float
     free: tuple[str, ...]
     seed: int = 0
+    note: str = ""  # e.g. a regularised Laplace covariance
     _cache: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -261,13 +281,55 @@ class IsolatorModel(GapModel):
         return ShearTest(data.name + "[first half]", data.time[:n], data.disp[:n], data.force[:n],
                          has_time=data.has_time, geometry=dict(data.geometry))
 
+    # --- checkpoints -------------------------------------------------------------------------
+    def checkpoint_key(self, data: ShearTest) -> str:
+        """SHA-256 of the test's samples and geometry, the law, fixed values, draws and search size."""
+        h = hashlib.sha256()
+        for a in (data.time, data.disp, data.force):
+            h.update(np.ascontiguousarray(np.asarray(a, dtype=np.float64)).tobytes())
+        h.update(json.dumps({"has_time": bool(data.has_time),
+                             "geometry": {str(k): repr(v) for k, v in sorted(dict(data.geometry).items())},
+                             "law": self.spec.name, "fixed": sorted(self.fixed.items()),
+                             "draws": self.draws, "global_evals": GLOBAL_EVALS,
+                             "format": CHECKPOINT_FORMAT}, sort_keys=True).encode())
+        return h.hexdigest()
+
+    def fit_state(self, fit: IsolatorFit) -> dict[str, np.ndarray]:
+        return {"law": np.array(fit.spec.name), "p_opt": fit.p_opt, "P": fit.P, "sig": fit.sig,
+                "sigma": np.array(fit.sigma), "noise": np.array(fit.noise),
+                "free": np.array(fit.free, dtype=str), "seed": np.array(fit.seed),
+                "note": np.array(fit.note)}
+
+    def restore(self, state: Mapping[str, np.ndarray]) -> IsolatorFit:
+        return IsolatorFit(spec=get(str(state["law"])), p_opt=np.asarray(state["p_opt"], dtype=float),
+                           P=np.asarray(state["P"], dtype=float), sig=np.asarray(state["sig"], dtype=float),
+                           sigma=float(state["sigma"]), noise=float(state["noise"]),
+                           free=tuple(str(x) for x in state["free"]), seed=int(state["seed"]),
+                           note=str(state["note"]) if "note" in state else "")
+
     def fit(self, data: ShearTest, *, seed: int = 0,
-            start: FitResult | Sequence[FitResult] | None = None) -> IsolatorFit:
+            start: FitResult | Sequence[FitResult] | None = None,
+            budget: TimeBudget | None = None) -> IsolatorFit:
         """Optimum and Laplace draws; ``start``: fits whose parameters seed the search (several
-        allowed: each is combined with every catalogue start of the added effects)."""
+        allowed: each is combined with every catalogue start of the added effects).
+
+        A start whose least-squares search fails is dropped; a simulation that fails (local
+        Newton, non-finite force, rejected parameters) is a bad point (a large constant residual),
+        never an exception.  ``budget`` is checked at every evaluation and raises
+        :class:`rrfrei.budget.BudgetExceeded` once spent.
+
+        Raises
+        ------
+        NumericalFailure
+            when no start can be fitted, or the Laplace covariance cannot be formed; the message
+            names the law, the test and the step.
+        """
         if not isinstance(data, ShearTest):
             raise ValueError(f"data must be a ShearTest, got {type(data).__name__}")
         spec = self.spec
+        where = f"law {spec.name!r} on test {data.name!r}"
+        if budget is not None:
+            budget.check()
         free, fixed = self._free(data)
         sc = test_scales(data)
         extra_bases: list[dict[str, float]] = []
@@ -280,7 +342,7 @@ class IsolatorModel(GapModel):
             base_vals = self._base_start(data, free, fixed, seed) if not spec.effects else {}
         if spec.effects and start is None:
             base_vals = IsolatorModel(spec.name.split("+")[0], fixed=self.fixed, draws=self.draws) \
-                .fit(data, seed=seed).params
+                .fit(data, seed=seed, budget=budget).params
         starts: list[dict[str, float]] = [{}]
         scale = {n: max(abs(base_vals.get(n, 0.0)), 1e-12) for n in free}
         box: dict[str, tuple[float, float]] = {}
@@ -314,12 +376,17 @@ class IsolatorModel(GapModel):
         def resid(x: np.ndarray) -> np.ndarray:
             p = p0.copy()
             p[fi] = x * s_vec
+            if budget is not None:
+                budget.check()
             if spec.check is not None:
                 try:
                     spec.check(p)
                 except ValueError:
                     return np.full(y.size, big)
-            st, _ = _simulate(spec, p, data, F)
+            try:
+                st, _ = _simulate(spec, p, data, F)
+            except NUMERICAL_ERRORS:
+                return np.full(y.size, big)
             if st != 0 or not np.all(np.isfinite(F)):
                 return np.full(y.size, big)
             return F - y
@@ -335,8 +402,9 @@ class IsolatorModel(GapModel):
                 continue
             if best is None or res.cost < best.cost:
                 best = res
-        if best is None:
-            raise ValueError(f"law {spec.name!r} could not be fitted to test {data.name!r}")
+        if best is None or not np.all(np.isfinite(best.x)):
+            raise NumericalFailure(f"least-squares fit of {where}: every start failed "
+                                   f"({len(starts)} starts)")
         p_opt = p0.copy()
         p_opt[fi] = best.x * s_vec
         r = best.fun
@@ -345,9 +413,10 @@ class IsolatorModel(GapModel):
         sigma = math.sqrt(rss / n)
         # Laplace proposal in the scaled coordinates, with a weak ridge (prior sd of one parameter
         # scale) so unidentified directions do not spread without limit
-        J = best.jac
-        s2 = rss / max(n - k, 1)
-        cov = np.linalg.inv(J.T @ J / s2 + np.eye(k)) if k else np.zeros((0, 0))
+        if not rss > 0.0 or not math.isfinite(rss):
+            raise NumericalFailure(f"Laplace posterior of {where}: residual sum of squares at the "
+                                   f"optimum is {rss!r} (expected finite > 0)")
+        cov, note = _laplace_cov(best.jac, rss / max(n - k, 1), k, where)
         # common random numbers: parameter j of the spec always gets the same normal column, so
         # nested laws (base vs base+effect) are compared with little Monte Carlo noise
         S = self.draws
@@ -379,7 +448,36 @@ class IsolatorModel(GapModel):
         sig = np.sqrt(rss_s / np.random.default_rng([seed, 999]).chisquare(n, size=S))
         self.last_ess = float(1.0 / np.sum(w**2))
         return IsolatorFit(spec=spec, p_opt=p_opt, P=P, sig=sig, sigma=sigma, noise=white_noise(r),
-                           free=free, seed=seed)
+                           free=free, seed=seed, note=note)
+
+
+def _laplace_cov(J: np.ndarray, s2: float, k: int, where: str) -> tuple[np.ndarray, str]:
+    """``(J^T J / s2 + I)^-1`` in scaled coordinates, and a note ("" unless regularised).
+
+    When the precision is singular in floating point (collinear Jacobian columns of size > 1e8,
+    where the unit ridge is lost to rounding: ``np.linalg.inv`` raises "Singular matrix"), it is
+    inverted through its eigen-decomposition with the eigenvalues clipped at the ridge (1), the
+    exact-arithmetic lower bound, and the note says so.  A non-finite Jacobian is a
+    :class:`NumericalFailure` naming ``where``.
+    """
+    if not k:
+        return np.zeros((0, 0)), ""
+    J = np.asarray(J, dtype=float)
+    if not np.all(np.isfinite(J)):
+        raise NumericalFailure(f"Laplace covariance of {where}: the Jacobian at the optimum is not finite")
+    A = J.T @ J / s2 + np.eye(k)
+    if not np.all(np.isfinite(A)):
+        raise NumericalFailure(f"Laplace covariance of {where}: J^T J / s^2 overflows")
+    try:
+        cov = np.linalg.inv(A)
+        if np.all(np.isfinite(cov)):
+            return cov, ""
+    except np.linalg.LinAlgError:
+        pass
+    w, V = np.linalg.eigh(0.5 * (A + A.T))
+    cov = (V / np.maximum(w, 1.0)) @ V.T
+    return cov, (f"Laplace precision of {where} singular in floating point: inverted with its "
+                 "eigenvalues clipped at the ridge (1)")
 
 
 def _mid(p) -> float:

@@ -97,6 +97,9 @@ def _f(x, d=1) -> str:
 def _summary(rep: GapReport) -> str:
     """One paragraph: what was found, in words."""
     if not rep.ranking:
+        if not rep.complete:
+            return (f"No effect was evaluated ({len(rep.skipped)} skipped after a numerical failure, "
+                    f"{len(rep.not_evaluated)} not evaluated for lack of time): the diagnosis is incomplete.")
         return "No effect could be judged."
     lead = max(rep.ranking, key=lambda s: s.delta_elpd)
     txt = (f"Baseline gap: {_pct(rep.baseline[0].gap)} on the calibration test (systematic part "
@@ -109,7 +112,10 @@ def _summary(rep: GapReport) -> str:
     if math.isfinite(lead.delta_holdout):
         txt += (f"; on the held-out tests {_f(lead.delta_holdout)} +- {_f(lead.se_holdout)}, held-out "
                 f"systematic gap shrink {_pct(lead.shrink_holdout)}")
-    if rep.diagnosis == "none":
+    if rep.diagnosis == "incomplete":
+        txt += (". No evaluated effect is significant, but not every effect was evaluated: the diagnosis "
+                "is `incomplete` (see the list above)")
+    elif rep.diagnosis == "none":
         txt += (". No effect is significant by the rule (gain > 2 se on the calibration test and, with "
                 "held-out tests, on them too, with the held-out systematic gap shrinking): the diagnosis "
                 "is `none`")
@@ -131,8 +137,17 @@ def write_report(rep: GapReport, out: str | Path, *, title: str | None = None) -
              f"{', '.join(f'`{t.name}`' for t in rep.holdout_data) or 'none'}.", "",
              f"**Diagnosis: `{rep.diagnosis}`**; combination: "
              f"`{'+'.join(rep.combination) if rep.combination else 'none'}`.", ""]
+    if not rep.complete:
+        lines += ["**Incomplete diagnosis.** Effects not evaluated:", ""]
+        lines += [f"* `{e}` skipped: {why}" for e, why in rep.skipped.items()]
+        lines += [f"* `{e}` not evaluated: {why}" for e, why in rep.not_evaluated.items()]
+        lines += [""]
+    if rep.budget_message:
+        lines += [f"Time budget: {rep.budget_message}", ""]
     for n in rep.notes:
-        lines += [f"> {n}", ""]
+        listed = n == rep.budget_message or (n.startswith("effect ") and " skipped: " in n)
+        if not listed:  # (those are in the lists above)
+            lines += [f"> {n}", ""]
     lines += [_summary(rep), ""]
     lines += ["## How far it shrinks", "",
               "| model | data | gap (NRMSE) | systematic | energy/cycle error | band coverage |",

@@ -229,7 +229,7 @@ def validate(seeds: int | list[int] = 1, *, cases=CASES, reduced: bool = False, 
             t0 = time.perf_counter()
             tests = make_tests(case, seed, reduced=reduced)
             rep = diagnose_gap(tests[0], BASE_LAW, holdout=tests[1:], fixed=FIXED, draws=draws,
-                               seed=seed, combine=combine)
+                               seed=seed, combine=combine, progress=False)
             named = next((s for s in rep.ranking if s.effect == rep.diagnosis), None)
             rows.append({"case": case, "seed": seed, "diagnosed": rep.diagnosis,
                          "combination": "+".join(rep.combination) or "none",
