@@ -253,6 +253,12 @@ class ShearBuilding:
             raise ValueError(f"{source}: unknown [isolator] key(s) {', '.join(iso_extra)}; "
                              "accepted: law, count, length_scale, params")
         params = isolator_params if isolator_params is not None else iso.get("params")
+        if isolator_params is None and params is not None:
+            if not isinstance(params, Mapping):
+                raise ValueError(f"{source}: [isolator.params] must be a table of numbers, got {params!r}")
+            for key, value in params.items():
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise ValueError(f"{source}: isolator.params.{key} = {value!r} is not a number")
         isolator = Isolator(iso["law"], params, count=iso.get("count", 1),
                             length_scale=iso.get("length_scale", 1.0))
         return cls(data["story_masses"], data["story_stiffness"], data["story_heights"],

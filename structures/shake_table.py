@@ -398,6 +398,8 @@ def _sidecar_levels(data: Mapping[str, Any], where: str) -> tuple[list[str] | No
         if not isinstance(names, list) or not names or not all(isinstance(x, str) for x in names):
             raise ValueError(f"{where}: [levels] names = {names!r} is invalid: expected a non-empty list of "
                              "strings (bottom-up)")
+        if len(set(names)) != len(names):
+            raise ValueError(f"{where}: [levels] names = {names!r} repeats a label; expected distinct names")
     if "masses" in lv and "weights" in lv:
         raise ValueError(f"{where}: give [levels] masses or weights, not both")
     masses = None
@@ -535,6 +537,9 @@ def _read_folder(folder: Path, name, rate_hz, masses, weights, weight_unit):
         raise ValueError(f"{where}: rate_hz = {rate!r} is invalid: expected a finite number > 0 Hz")
     side_names, side_masses = _sidecar_levels(side, where)
     m = _level_masses(masses, weights, weight_unit, side_masses, n, where)
+    if side_names is not None and len(side_names) != n:
+        raise ValueError(f"{where}: [levels] names has {len(side_names)} labels but the folder has {n} "
+                         f"levels (a1..a{n})")
     names = side_names or [f"a{i}" for i in range(n, 0, -1)]
     nt = chans["u"].size
     order = list(range(n, 0, -1))  # bottom-up: aN (base slab) ... a1 (roof)

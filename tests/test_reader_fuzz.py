@@ -22,7 +22,7 @@ import tempfile
 import tomllib
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +40,7 @@ from structures.building import load_building
 from structures.shake_table import ConsistencyWarning, read_run
 
 FAST = 50
-SLOW = 400
+SLOW = 300
 
 SYNTH = Path(rrfrei.__file__).parent / "data" / "isolator_synthetic"
 RECORDS = Path(ground_motions.__file__).parent / "records"
@@ -204,15 +204,15 @@ def _check_run(r) -> None:
 # ------------------------------------------------------------------------------- formats
 @dataclass(frozen=True)
 class Format:
-    """One fuzz target: ``target`` (the fuzzed file) among ``files`` written into a fresh folder;
-    ``read(folder)`` calls the reader, ``check(result)`` asserts the invariants of a success."""
+    """One fuzz target: ``target`` (the fuzzed file, relative path) among ``files`` written into a
+    fresh folder; ``read(folder)`` calls the reader, ``check(result)`` asserts the invariants of a
+    success."""
 
     id: str
     target: str
     files: Callable[[], dict[str, bytes]]
     read: Callable[[Path], object]
     check: Callable[[object], None]
-    extra: dict = field(default_factory=dict)
 
 
 FORMATS = [
@@ -246,28 +246,24 @@ FORMATS = [
     Format("shake-csv-gz", "run.csv.gz", lambda: {"run.csv.gz": gzip.compress(_run_csv(), mtime=0),
                                                   "run.toml": _run_toml()},
            lambda d: read_run(d / "run.csv.gz"), _check_run),
-    Format("shake-folder-gz", "u.txt.gz",
+    Format("shake-folder-gz", "run/u.txt.gz",
            lambda: {"run/" + k + ".txt": _column(c) for k, c in
                     (("a1", "a1"), ("a2", "a0"), ("d1", "d1"), ("d2", "d0"))}
            | {"run/u.txt.gz": gzip.compress(_column("ag"), mtime=0), "run/run.toml": _folder_toml()},
-           lambda d: read_run(d / "run"), _check_run, extra={"dir": "run"}),
+           lambda d: read_run(d / "run"), _check_run),
     Format("shake-csv-toml", "run.toml", lambda: {"run.csv": _run_csv(), "run.toml": _run_toml()},
            lambda d: read_run(d / "run.csv"), _check_run),
-    Format("shake-folder-column", "u.txt",
+    Format("shake-folder-column", "run/u.txt",
            lambda: {"run/" + k + ".txt": _column(c) for k, c in
                     (("a1", "a1"), ("a2", "a0"), ("d1", "d1"), ("d2", "d0"), ("u", "ag"))}
            | {"run/run.toml": _folder_toml()},
-           lambda d: read_run(d / "run", check=True), _check_run, extra={"dir": "run"}),
-    Format("shake-folder-toml", "run.toml",
+           lambda d: read_run(d / "run", check=True), _check_run),
+    Format("shake-folder-toml", "run/run.toml",
            lambda: {"run/" + k + ".txt": _column(c) for k, c in
                     (("a1", "a1"), ("a2", "a0"), ("d1", "d1"), ("d2", "d0"), ("u", "ag"))}
            | {"run/run.toml": _folder_toml()},
-           lambda d: read_run(d / "run"), _check_run, extra={"dir": "run"}),
+           lambda d: read_run(d / "run"), _check_run),
 ]
-
-
-def _target_path(fmt: Format) -> str:
-    return f"{fmt.extra['dir']}/{fmt.target}" if "dir" in fmt.extra else fmt.target
 
 
 # ------------------------------------------------------------------------------- mutations
@@ -393,7 +389,7 @@ def test_every_seed_file_is_valid(tmp_path, fmt):
 def _fuzz(fmt: Format, blob: bytes, root: Path) -> None:
     folder = Path(tempfile.mkdtemp(dir=root))
     files = dict(_seed(fmt))
-    files[_target_path(fmt)] = blob
+    files[fmt.target] = blob
     _write(folder, files)
     read_or_explain(fmt, folder)
 
@@ -403,7 +399,7 @@ def _fuzz(fmt: Format, blob: bytes, root: Path) -> None:
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(data=st.data())
 def test_fuzzed_files_are_read_or_refused_with_a_value_error_naming_the_file(tmp_path, fmt, data):
-    blob = data.draw(mutated(_seed(fmt)[_target_path(fmt)]), label="file bytes")
+    blob = data.draw(mutated(_seed(fmt)[fmt.target]), label="file bytes")
     _fuzz(fmt, blob, tmp_path)
 
 
@@ -413,7 +409,7 @@ def test_fuzzed_files_are_read_or_refused_with_a_value_error_naming_the_file(tmp
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(data=st.data())
 def test_many_fuzzed_files_are_read_or_refused_with_a_value_error_naming_the_file(tmp_path, fmt, data):
-    blob = data.draw(mutated(_seed(fmt)[_target_path(fmt)]), label="file bytes")
+    blob = data.draw(mutated(_seed(fmt)[fmt.target]), label="file bytes")
     _fuzz(fmt, blob, tmp_path)
 
 
@@ -479,6 +475,8 @@ CASES = [
     ("building-toml", lambda s: s.replace(b'law = "plasticity"', b'law = "nope"'), r"b\.toml': .*nope"),
     ("building-toml", lambda s: s[: s.index(b"[isolator]")] + b"isolator = 3\n",
      r"b\.toml': isolator must be a table"),
+    ("building-toml", lambda s: s.replace(b"k_init = 260.0", b"k_init = {}"),
+     r"b\.toml': isolator.params.k_init = \{\} is not a number"),
     ("building-toml", lambda s: BINARY, r"b\.toml' is not UTF-8 TOML text \(byte 128"),
     ("rubber-csv", lambda s: b"", r"u\.csv: empty file; expected a header"),
     ("rubber-csv", lambda s: _split_lines(s)[0], r"u\.csv: expected at least 2 samples, got 0"),
@@ -492,6 +490,10 @@ CASES = [
      r"run\.csv: 12 samples are too few for the consistency check"),
     ("shake-csv-toml", lambda s: s.replace(b'names = ["base", "roof"]', b'names = "base"'),
      r"run\.toml: \[levels\] names = 'base' is invalid: expected a non-empty list of strings"),
+    ("shake-csv-toml", lambda s: s.replace(b'["base", "roof"]', b'["base", "base"]'),
+     r"run\.toml: \[levels\] names = \['base', 'base'\] repeats a label"),
+    ("shake-folder-toml", lambda s: s.replace(b'["base", "roof"]', b'["roof"]'),
+     r"run\.toml: \[levels\] names has 1 labels but the folder has 2 levels"),
     ("shake-folder-column", lambda s: b"", r"u\.txt: no values \(empty file\)"),
     ("shake-folder-column", lambda s: _replace_line(s, 2, b"0.1 0.2x"),
      r"u\.txt, line 3: '0\.2x' is not a number"),
@@ -504,7 +506,7 @@ CASES = [
 def test_hand_made_bad_files_name_the_file_and_the_problem(tmp_path, fid, make, expected):
     fmt = _by_id(fid)
     files = dict(_seed(fmt))
-    files[_target_path(fmt)] = make(files[_target_path(fmt)])
+    files[fmt.target] = make(files[fmt.target])
     _write(tmp_path, files)
     with pytest.raises(ValueError, match=expected) as exc:
         fmt.read(tmp_path)
@@ -522,7 +524,7 @@ DIRECTORY_READERS = [
 @pytest.mark.parametrize(("fid", "reader", "expected"), DIRECTORY_READERS,
                          ids=[c[0] for c in DIRECTORY_READERS])
 def test_a_directory_instead_of_a_file_is_a_value_error_naming_it(tmp_path, fid, reader, expected):
-    target = tmp_path / _by_id(fid).target
+    target = tmp_path / Path(_by_id(fid).target).name
     target.mkdir()
     with pytest.raises(ValueError, match=expected):
         reader(target)
@@ -533,3 +535,22 @@ def test_a_directory_instead_of_a_sidecar_is_a_value_error_naming_it(tmp_path):
     (tmp_path / "geometry.toml").mkdir()
     with pytest.raises(ValueError, match=r"geometry\.toml: is a directory; expected a TOML file"):
         read_test(tmp_path / "t.csv")
+
+
+def test_the_property_refuses_errors_that_do_not_name_the_file_or_are_not_value_errors(tmp_path):
+    def raising(exc):
+        def read(folder):
+            raise exc
+        return replace(_by_id("shear-csv"), read=read)
+
+    assert isinstance(read_or_explain(raising(ValueError(f"{tmp_path}/t.csv: row 3 is bad")), tmp_path),
+                      ValueError)
+    with pytest.raises(AssertionError, match="does not name 't.csv'"):
+        read_or_explain(raising(ValueError("could not convert string to float: 'x'")), tmp_path)
+    with pytest.raises(AssertionError, match="says too little"):
+        read_or_explain(raising(ValueError(f"{tmp_path}/t.csv")), tmp_path)
+    with pytest.raises(AssertionError, match="bare UnicodeDecodeError"):
+        read_or_explain(raising(UnicodeDecodeError("utf-8", b"t.csv \xff", 6, 7, "invalid start byte")),
+                        tmp_path)
+    with pytest.raises(KeyError):
+        read_or_explain(raising(KeyError("t.csv")), tmp_path)
