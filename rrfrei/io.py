@@ -227,7 +227,8 @@ def read_test(
     FileNotFoundError
         the file does not exist.
     ValueError
-        malformed file: the message names the file, the column and the row.
+        malformed file (or sidecar TOML), or a directory: the message names the file, the column
+        and the row.
 
     Examples
     --------

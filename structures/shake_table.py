@@ -14,7 +14,8 @@ Two layouts are read by :func:`read_run`:
 1. **Folder layout** (the BNCS data of Orozco et al. 2025): files ``a1 ... aN`` (absolute
    accelerations [m/s^2], ``a1`` the roof, ``aN`` the base slab), ``d1 ... dN`` (displacements
    relative to the table [m]), ``u`` (table acceleration [m/s^2]) and optionally ``du`` (table
-   displacement [m]), one value per line, ``.txt`` or ``.txt.gz``; the sampling rate and the
+   displacement [m]), whitespace-separated values (one per line, or all on one line as in some
+   BNCS ``d`` files), ``.txt`` or ``.txt.gz``; the sampling rate and the
    level masses come from a TOML sidecar (``<folder>.toml`` or ``run.toml`` inside it) or the
    arguments ``rate_hz=`` and ``masses=`` / ``weights=``.
 2. **CSV layout**: ``time_s``, ``table_accel_<unit>``, optional ``table_disp_<unit>``, and per
@@ -628,6 +629,12 @@ def _read_csv(path: Path, name, masses, weights, weight_unit):
         if not found:
             raise ValueError(f"{where}: no <LEVEL>_accel_abs_<unit> columns; columns are {', '.join(cols)}")
         side_names = found  # file order, taken as bottom-up
+    else:
+        for lvl in side_names:
+            for kind in ("accel_abs", "disp_rel"):
+                if pick(f"{lvl}_{kind}", False) is None:
+                    raise ValueError(f"{where}: no column {lvl}_{kind}_<unit> for level {lvl!r} of [levels] "
+                                     f"names in {side['_path']}; columns are {', '.join(cols)}")
     accel, disp = [], []
     for lvl in side_names:
         ac = pick(f"{lvl}_accel_abs", True)

@@ -39,7 +39,7 @@ from rubber.io import read_test as read_rubber
 from structures.building import load_building
 from structures.shake_table import ConsistencyWarning, read_run
 
-FAST = 50
+FAST = 80
 SLOW = 300
 
 SYNTH = Path(rrfrei.__file__).parent / "data" / "isolator_synthetic"
@@ -56,6 +56,13 @@ def _lines(path: Path, n: int) -> list[str]:
 def _shear_csv() -> bytes:
     """The first 40 samples of the bundled protocol1 test (time_s, disp_mm, force_kN)."""
     return "".join(_lines(SYNTH / "protocol1.csv", 41)).encode()
+
+
+def _shear_csv_units_row() -> bytes:
+    """The same samples with bare column names, a units row and a vertical-load column."""
+    rows = [ln.strip().split(",") for ln in _lines(SYNTH / "protocol1.csv", 41)[1:]]
+    body = "".join(f"{t},{d},{f},{19.25 + 0.01 * i:.2f}\n" for i, (t, d, f) in enumerate(rows))
+    return ("Time,Disp,Force,Vertical\ns,mm,kN,kN\n" + body).encode()
 
 
 def _geometry_toml() -> bytes:
@@ -217,6 +224,8 @@ class Format:
 
 FORMATS = [
     Format("shear-csv", "t.csv", lambda: {"t.csv": _shear_csv(), "geometry.toml": _geometry_toml()},
+           lambda d: read_test(d / "t.csv"), _check_shear),
+    Format("shear-csv-units-row", "t.csv", lambda: {"t.csv": _shear_csv_units_row()},
            lambda d: read_test(d / "t.csv"), _check_shear),
     Format("shear-geometry-toml", "geometry.toml",
            lambda: {"t.csv": _shear_csv(), "geometry.toml": _geometry_toml()},
@@ -492,6 +501,8 @@ CASES = [
      r"run\.toml: \[levels\] names = 'base' is invalid: expected a non-empty list of strings"),
     ("shake-csv-toml", lambda s: s.replace(b'["base", "roof"]', b'["base", "base"]'),
      r"run\.toml: \[levels\] names = \['base', 'base'\] repeats a label"),
+    ("shake-csv-toml", lambda s: s.replace(b'"base"', b'"slab"'),
+     r"run\.csv: no column slab_accel_abs_<unit> for level 'slab' of \[levels\] names in .*run\.toml"),
     ("shake-folder-toml", lambda s: s.replace(b'["base", "roof"]', b'["roof"]'),
      r"run\.toml: \[levels\] names has 1 labels but the folder has 2 levels"),
     ("shake-folder-column", lambda s: b"", r"u\.txt: no values \(empty file\)"),
