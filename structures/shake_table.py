@@ -554,7 +554,8 @@ def _read_folder(folder: Path, name, rate_hz, masses, weights, weight_unit):
         level_names=tuple(names),
         table_disp=chans.get("du"),
         source=str(folder),
-        meta={"layout": "folder", "rate_hz": rate},
+        meta={"layout": "folder", "rate_hz": rate,
+              "rate_source": "the argument rate_hz" if rate_hz is not None else where},
     )
 
 
@@ -708,7 +709,9 @@ def read_run(
         try:
             rep = check_consistency(run, cutoff_hz=cutoff_hz, tol=tol)
         except ValueError as exc:
-            raise ValueError(f"{run.source}: {exc}") from None
+            rate = (f" (rate_hz = {run.meta['rate_hz']!r} Hz from {run.meta['rate_source']})"
+                    if "rate_source" in run.meta else "")
+            raise ValueError(f"{run.source}{rate}: {exc}") from None
         run = replace(run, consistency=rep)
         if not rep.ok:
             warnings.warn(f"run {run.name!r} ({run.source}): " + str(rep), ConsistencyWarning, stacklevel=2)
