@@ -1,9 +1,10 @@
 """Property-based fuzzing of the file readers (issue 16, "readers get property-based fuzzing").
 
 Every reader at the public boundary is fed inputs derived from a valid seed file of its format:
-truncated at any byte, bytes flipped / inserted / deleted, a number replaced by garbage, NaN, inf
-or nothing, lines dropped / duplicated / swapped, binary noise, an empty file, the header alone,
-non-UTF-8 bytes.  The property: the reader either returns a result whose invariants hold (finite
+truncated at any byte, bytes flipped / inserted / deleted, a number (or a word: key, string,
+column name, unit) replaced by garbage, NaN, inf, nothing or a value of another TOML type, lines
+dropped / duplicated / swapped / blanked, binary noise, an empty file, the header alone, non-UTF-8
+bytes, UTF-16.  The property: the reader either returns a result whose invariants hold (finite
 arrays of consistent lengths, increasing time, positive dt, ...) -- a mutation may well leave a
 valid file -- or raises a plain ``ValueError`` whose message names the file and says what is
 wrong.  Any other exception (``UnicodeDecodeError``, ``IndexError``, ``KeyError``, ``TypeError``,
@@ -281,6 +282,7 @@ GARBAGE = ["", " ", "nan", "NaN", "-nan", "inf", "-Infinity", "1e999", "-1e400",
            "0x1A", "1,5", "1e", ".", "+", "\x00", "é", "1_000", "\u0663", "true", "[]", "[1, [2]]", "{}",
            '"x"', "'", "1979-05-27", "0", "-1", "1e-300", "1.7e308", "-1.7e308", "12345678901234567890"]
 _NUMBER = re.compile(rb"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][-+]?\d+)?")
+_WORD = re.compile(rb'"[^"\n]*"|[A-Za-z_]+')  # a TOML string, a key, a column name, a unit
 
 
 def _split_lines(data: bytes) -> list[bytes]:
@@ -293,6 +295,7 @@ def _one_mutation(draw, data: bytes) -> bytes:
     op = draw(st.sampled_from([
         "truncate", "flip", "insert", "delete", "number", "number", "number", "drop_line",
         "duplicate_line", "swap_lines", "noise", "empty", "header", "non_utf8", "utf16", "blank_line",
+        "word",
     ]))
     if op == "truncate":
         return data[: draw(st.integers(0, n))]
@@ -307,8 +310,8 @@ def _one_mutation(draw, data: bytes) -> bytes:
     if op == "delete" and n:
         i = draw(st.integers(0, n - 1))
         return data[:i] + data[i + draw(st.integers(1, 16)):]
-    if op == "number":
-        hits = list(_NUMBER.finditer(data))
+    if op in ("number", "word"):
+        hits = list((_NUMBER if op == "number" else _WORD).finditer(data))
         if hits:
             m = draw(st.sampled_from(hits))
             return data[: m.start()] + draw(st.sampled_from(GARBAGE)).encode() + data[m.end():]
