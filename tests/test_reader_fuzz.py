@@ -41,7 +41,7 @@ from structures.building import load_building
 from structures.shake_table import ConsistencyWarning, read_run
 
 FAST = 80
-SLOW = 300
+SLOW = 500
 
 SYNTH = Path(rrfrei.__file__).parent / "data" / "isolator_synthetic"
 RECORDS = Path(ground_motions.__file__).parent / "records"
