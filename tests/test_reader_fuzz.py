@@ -77,15 +77,24 @@ def _at2() -> bytes:
     return "".join(head).encode()
 
 
-def _csmip(name: str, data_line: int, old: str, new: str, width: int) -> bytes:
-    """A CSMIP file cut to its first channel's header and 40 values, then the ``/&`` end line."""
-    head = _lines(RECORDS / name, data_line + math.ceil(40 / 8))
-    assert old in head[data_line - 1], head[data_line - 1]
-    head[data_line - 1] = head[data_line - 1].replace(old, new)
+def _csmip(name: str, data_line: int, old: str, new: str, width: int, first: int = 1) -> bytes:
+    """One channel of a CSMIP file (its header from line ``first``, the data line ``data_line``,
+    both 1-based) cut to 40 values, then the ``/&`` end line."""
+    lines = _lines(RECORDS / name, data_line + math.ceil(40 / 8))
+    head = lines[first - 1:]
+    k = data_line - first
+    assert old in head[k], head[k]
+    head[k] = head[k].replace(old, new)
     last = head[-1].rstrip("\r\n")
     eol = head[-1][len(last):]
     head[-1] = last[: width * (40 % 8 or 8)] + eol
     return ("".join(head) + "/&  ----------  End of data for channel  1  ----------" + eol).encode()
+
+
+def _csmip_two_channels() -> bytes:
+    """Channels 1 (180 deg) and 2 (90 deg) of the bundled Avol file, 40 values each."""
+    return (_csmip("ce89486SampleInput.v2", 46, " 10100 points", "    40 points", 10)
+            + _csmip("ce89486SampleInput.v2", 3884, " 10100 points", "    40 points", 10, first=3839))
 
 
 def _text_record() -> bytes:
@@ -237,6 +246,8 @@ FORMATS = [
            lambda d: read_record(d / "r.V2"), _check_record),
     Format("v2-avol", "r.v2",
            lambda: {"r.v2": _csmip("ce89486SampleInput.v2", 46, " 10100 points", "    40 points", 10)},
+           lambda d: read_record(d / "r.v2"), _check_record),
+    Format("v2-two-channels", "r.v2", lambda: {"r.v2": _csmip_two_channels()},
            lambda d: read_record(d / "r.v2"), _check_record),
     Format("v1-raw", "r.RAW",
            lambda: {"r.RAW": _csmip("CICCC.RAW", 28, " 35430 Accelerogram", "    40 Accelerogram", 9)},
@@ -481,6 +492,9 @@ CASES = [
      r"r\.V2, line 46: header declares NPTS = 40 accel values but 0 values were read"),
     ("v2-avol", lambda s: s.replace(b"(8f10.5)", b"(8f0.5)"),
      r"r\.v2, line 46: field width 0 in the format '\(8f0\.5\)' is invalid"),
+    ("v2-two-channels", lambda s: s.replace(b"Chan  1: 180 Deg", b"Chan  1: Up     ")
+     .replace(b"Chan  2:  90 Deg", b"Chan  2: Up     "),
+     r"r\.v2: no horizontal channel found; pass channel=1\.\.2"),
     ("gm-text", lambda s: b"", r"r\.txt: no data \(empty file\)"),
     ("gm-csv", lambda s: _split_lines(s)[0], r"r\.csv: header only, no data rows"),
     ("gm-csv", lambda s: _replace_line(s, 3, b"0.02,inf"), r"r\.csv, line 4: value 'inf' is not finite"),
