@@ -119,6 +119,18 @@ def _values_fixed(lines: list[str], start: int, npts: int, width: int, path: Pat
     return out, i
 
 
+def _to_si(a: np.ndarray, factor: float, units: str, path: Path) -> np.ndarray:
+    """``a * factor`` (to m/s^2), or a ValueError naming the first value that overflows."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = np.asarray(a, dtype=np.float64) * factor
+    bad = np.flatnonzero(~np.isfinite(out))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"{path}: value {float(a[i])!r} {units} (sample {i}) overflows when converted to "
+                         "m/s^2")
+    return out
+
+
 def _check_count(values: list[float], npts: int, path: Path, line: int, what: str) -> np.ndarray:
     if len(values) != npts:
         raise ValueError(
@@ -161,7 +173,7 @@ def _read_at2(path: Path, lines: list[str], dt_given: float | None, units: str |
         meta.update(event=lines[1].strip(), station="", component="")
     if "POLE" in lines[3].upper():
         meta["filter"] = lines[3].split("SEC,", 1)[-1].strip()
-    return Record(path.stem, dt, a * factor, meta)
+    return Record(path.stem, dt, _to_si(a, factor, units, path), meta)
 
 
 # --------------------------------------------------------------------------- CSMIP V1/V2
@@ -238,11 +250,15 @@ def _csmip_channel(
     mf = _FORTRAN.search(rest)
     if mf:
         width = int(mf.group(2))
+        if not 1 <= width <= 40:
+            raise ValueError(f"{path}, line {data_line + 1}: field width {width} in the format "
+                             f"{mf.group(0)!r} is invalid: expected 1..40 columns per value")
     dt = _check_dt(dt, path, data_line + 1, None)
     values, _ = _values_fixed(lines, data_line + 1, npts, width, path)
     a = _check_count(values, npts, path, data_line + 1, "accel values")
     meta.update(npts=npts, source_units=units)
-    return dt, a * unit_factor(units, where=f"{path}, line {data_line + 1}"), meta
+    factor = unit_factor(units, where=f"{path}, line {data_line + 1}")
+    return dt, _to_si(a, factor, units, path), meta
 
 
 def _read_csmip(
@@ -327,7 +343,7 @@ def _read_text(path: Path, lines: list[str], dt_given: float | None, units: str 
         dt = _check_dt(float(dt_given), path, None, None)
         a = arr[:, 0]
     meta = {"format": "text", "source_units": units, "npts": a.size, "channel": 1}
-    return Record(path.stem, dt, a * factor, meta)
+    return Record(path.stem, dt, _to_si(a, factor, units, path), meta)
 
 
 _CSV_ACCEL = re.compile(r"^accel(?:_(g|mps2|cmps2|mmps2))?$", re.I)
@@ -389,7 +405,7 @@ def _read_csv(
         "channel": acc_cols.index(col) + 1,
         "column": names[col],
     }
-    return Record(path.stem, dt, a * factor, meta)
+    return Record(path.stem, dt, _to_si(a, factor, src_units, path), meta)
 
 
 # --------------------------------------------------------------------------- public
@@ -452,7 +468,12 @@ def read(
         non-uniform dt, unknown units; the message names the file, line and value.
     """
     p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{p}: is a directory; expected an accelerogram file")
     raw = p.read_bytes()
+    nul = raw.find(b"\x00")
+    if nul >= 0:
+        raise ValueError(f"{p}: byte {nul} is a NUL: a binary (or UTF-16) file, not a text accelerogram")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -465,16 +486,22 @@ def read(
     if channel is not None and kind in ("at2", "text") and int(channel) != 1:
         raise ValueError(f"{p}: a {kind} file has a single channel, got channel={channel!r}")
     lines = text.splitlines()
-    if kind == "at2":
-        rec = _read_at2(p, lines, dt, units)
-    elif kind in ("v1", "v2"):
-        if units is not None:
-            raise ValueError(f"{p}: a {kind.upper()} file states its units; do not pass units={units!r}")
-        rec = _read_csmip(p, lines, kind, dt, channel)
-    elif kind == "text":
-        rec = _read_text(p, lines, dt, units)
-    else:
-        rec = _read_csv(p, text, dt, units, channel)
+    try:
+        if kind == "at2":
+            rec = _read_at2(p, lines, dt, units)
+        elif kind in ("v1", "v2"):
+            if units is not None:
+                raise ValueError(f"{p}: a {kind.upper()} file states its units; do not pass units={units!r}")
+            rec = _read_csmip(p, lines, kind, dt, channel)
+        elif kind == "text":
+            rec = _read_text(p, lines, dt, units)
+        else:
+            rec = _read_csv(p, text, dt, units, channel)
+    except ValueError as exc:
+        if str(p) in str(exc):
+            raise
+        # e.g. a value that overflows to inf once converted to m/s^2 (Record's own check)
+        raise ValueError(f"{p}: {exc}") from None
     meta = {"file": p.name, **rec.meta}
     meta.setdefault("event", "")
     meta.setdefault("station", "")

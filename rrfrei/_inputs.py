@@ -25,11 +25,17 @@ def as_history(values, name: str, *, min_len: int = 1) -> np.ndarray:
 
 
 def read_toml(path: str | Path) -> dict:
-    """Parse a TOML file; a missing file raises FileNotFoundError, bad TOML a ValueError naming it."""
+    """Parse a TOML file; a missing file raises FileNotFoundError, a directory, a binary or
+    non-UTF-8 file or bad TOML a ValueError naming it."""
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(2, "No such file", str(path))
+    if path.is_dir():
+        raise ValueError(f"{path}: is a directory; expected a TOML file")
     try:
         return tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a UTF-8 TOML text file (byte {exc.start} is not UTF-8 text: a "
+                         "binary file, or another encoding)") from None
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{path}: not valid TOML ({exc})") from None

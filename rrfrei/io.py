@@ -227,7 +227,8 @@ def read_test(
     FileNotFoundError
         the file does not exist.
     ValueError
-        malformed file: the message names the file, the column and the row.
+        malformed file (or sidecar TOML), or a directory: the message names the file, the column
+        and the row.
 
     Examples
     --------
@@ -237,9 +238,9 @@ def read_test(
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(2, "No such file", str(path))
-    if path.is_dir():
-        raise IsADirectoryError(21, "Is a directory", str(path))
     where = str(path)
+    if path.is_dir():
+        raise ValueError(f"{where}: is a directory; expected a CSV file")
     try:
         with path.open(newline="", encoding="utf-8-sig") as fh:
             rows = list(csv.reader(fh))
@@ -295,7 +296,12 @@ def read_test(
     data = np.empty((len(body), max(cols) + 1))
     for r, row in enumerate(body):
         for c in cols:
-            text = row[c].strip() if c < len(row) else ""
+            if c >= len(row):
+                raise ValueError(
+                    f"{where}, row {first_data_row + r}, column {header[c]!r}: missing (the row has "
+                    f"{len(row)} fields, the header {len(header)})"
+                )
+            text = row[c].strip()
             try:
                 x = float(text)
             except ValueError:
@@ -372,14 +378,16 @@ def _read_geometry_toml(path: Path) -> tuple[dict[str, float], float | None, dic
     geo = data.get("geometry", {})
     if not isinstance(geo, dict):
         raise ValueError(f"{path}: [geometry] must be a table of numbers in m")
+    geo = _check_geometry(geo, f" in {path}")
     vertical = data.get("vertical_load_kN")
     if vertical is not None:
-        try:
-            vertical = float(vertical)
-        except (TypeError, ValueError):
-            raise ValueError(f"{path}: vertical_load_kN = {vertical!r} is not a number") from None
+        if isinstance(vertical, bool) or not isinstance(vertical, (int, float)):
+            raise ValueError(f"{path}: vertical_load_kN = {vertical!r} is not a number")
+        vertical = float(vertical)
+        if not math.isfinite(vertical):
+            raise ValueError(f"{path}: vertical_load_kN = {vertical!r} must be a finite number [kN]")
     notes = {k: v for k, v in data.items() if k not in ("geometry", "vertical_load_kN")}
-    return dict(geo), vertical, notes
+    return geo, vertical, notes
 
 
 def bundled_tests() -> tuple[str, ...]:

@@ -30,7 +30,12 @@ class Test:
         if np.asarray(self.stretch).shape != n or np.asarray(self.stress).shape != n or len(n) != 1:
             raise ValueError(f"{self.name}: time, stretch and stress must be 1-D arrays of equal length")
         if n[0] < 2:
-            raise ValueError(f"{self.name}: expected at least 2 samples")
+            raise ValueError(f"{self.name}: expected at least 2 samples, got {n[0]}")
+        for key in ("time", "stretch", "stress"):
+            a = np.asarray(getattr(self, key), dtype=float)
+            bad = np.flatnonzero(~np.isfinite(a))
+            if bad.size:
+                raise ValueError(f"{self.name}: {key}[{bad[0]}] = {a[bad[0]]!r} is not finite")
         t = np.asarray(self.time)
         bad = np.nonzero(np.diff(t) <= 0)[0]
         if bad.size:
@@ -50,7 +55,7 @@ def _read_csv(path: Path) -> Test:
     except csv.Error as exc:
         raise ValueError(f"{path}: malformed CSV: {exc}") from None
     if not rows:
-        raise ValueError(f"{path}: empty file")
+        raise ValueError(f"{path}: empty file; expected a header (time_s, stretch, stress_MPa) and data rows")
     head = [h.strip() for h in rows[0]]
     for need in ("time_s", "stretch"):
         if need not in head:
@@ -88,6 +93,14 @@ def _read_mat(path: Path) -> Test:
                          f"ydata [stress kPa] ({exc})") from None
     if x.ndim != 2 or x.shape[1] != 2 or x.shape[0] != y.size:
         raise ValueError(f"{path}: data.xdata shape {x.shape} and data.ydata size {y.size} do not match")
+    for key, a in (("xdata", x), ("ydata", y)):
+        bad = np.argwhere(~np.isfinite(a))
+        if bad.size:
+            idx = tuple(int(i) for i in bad[0])
+            raise ValueError(f"{path}: data.{key}{list(idx)} = {a[idx]!r} is not finite")
+    if np.any(x[:, 1] <= 0):
+        i = int(np.flatnonzero(x[:, 1] <= 0)[0])
+        raise ValueError(f"{path}: data.xdata[{i}, 1] = {x[i, 1]!r} is not a positive stretch")
     return Test(path.name, x[:, 0].copy(), x[:, 1].copy(), y * 1e-3)
 
 
@@ -97,6 +110,8 @@ def read_test(path: str | Path) -> Test:
     Raises ValueError naming the file, column and row of bad input.
     """
     p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{p}: is a directory; expected a .csv or .mat test file")
     if not p.is_file():
         raise ValueError(f"{p}: no such file")
     if p.suffix.lower() == ".mat":

@@ -209,13 +209,24 @@ class ShearBuilding:
         ``[isolator.params]`` table.  ``isolator_params`` replaces the file's parameters.
         """
         p = Path(path)
+        where = f"building file {str(p)!r}"
+        if p.is_dir():
+            raise ValueError(f"{where} is a directory; expected a building TOML file")
         try:
-            data = tomllib.loads(p.read_text())
+            data = tomllib.loads(p.read_text(encoding="utf-8"))
         except FileNotFoundError:
-            raise ValueError(f"building file {str(p)!r} does not exist") from None
+            raise ValueError(f"{where} does not exist") from None
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"{where} is not UTF-8 TOML text (byte {exc.start} is not UTF-8: a binary file, "
+                             "or another encoding)") from None
         except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"building file {str(p)!r} is not valid TOML: {exc}") from None
-        return cls.from_mapping(data, isolator_params=isolator_params, name=p.stem, source=str(p))
+            raise ValueError(f"{where} is not valid TOML: {exc}") from None
+        try:
+            return cls.from_mapping(data, isolator_params=isolator_params, name=p.stem, source=where)
+        except ValueError as exc:
+            if str(p) in str(exc):
+                raise
+            raise ValueError(f"{where}: {exc}") from None
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], *, isolator_params: Mapping[str, float] | None = None,
@@ -231,6 +242,9 @@ class ShearBuilding:
             raise ValueError(
                 f"{source}: unknown key(s) {', '.join(extra)}; accepted: {', '.join(sorted(known))}"
             )
+        if not isinstance(data["isolator"], Mapping):
+            raise ValueError(f"{source}: isolator must be a table ([isolator] with law, count, "
+                             f"length_scale, params), got {data['isolator']!r}")
         iso = dict(data["isolator"])
         if "law" not in iso:
             raise ValueError(f"{source}: the [isolator] table needs a 'law'")
@@ -239,6 +253,12 @@ class ShearBuilding:
             raise ValueError(f"{source}: unknown [isolator] key(s) {', '.join(iso_extra)}; "
                              "accepted: law, count, length_scale, params")
         params = isolator_params if isolator_params is not None else iso.get("params")
+        if isolator_params is None and params is not None:
+            if not isinstance(params, Mapping):
+                raise ValueError(f"{source}: [isolator.params] must be a table of numbers, got {params!r}")
+            for key, value in params.items():
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise ValueError(f"{source}: isolator.params.{key} = {value!r} is not a number")
         isolator = Isolator(iso["law"], params, count=iso.get("count", 1),
                             length_scale=iso.get("length_scale", 1.0))
         return cls(data["story_masses"], data["story_stiffness"], data["story_heights"],
@@ -339,7 +359,7 @@ def load_building(name: str | Path, isolator_params: Mapping[str, float] | None 
     text = str(name)
     if isinstance(name, Path) or text.endswith(".toml") or Path(text).is_file():
         path = Path(text)
-        if not path.is_file():
+        if not path.exists():
             raise FileNotFoundError(2, "building file not found", str(path))
         return ShearBuilding.from_toml(path, isolator_params=isolator_params)
     if text not in names:

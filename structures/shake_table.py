@@ -14,7 +14,8 @@ Two layouts are read by :func:`read_run`:
 1. **Folder layout** (the BNCS data of Orozco et al. 2025): files ``a1 ... aN`` (absolute
    accelerations [m/s^2], ``a1`` the roof, ``aN`` the base slab), ``d1 ... dN`` (displacements
    relative to the table [m]), ``u`` (table acceleration [m/s^2]) and optionally ``du`` (table
-   displacement [m]), one value per line, ``.txt`` or ``.txt.gz``; the sampling rate and the
+   displacement [m]), whitespace-separated values (one per line, or all on one line as in some
+   BNCS ``d`` files), ``.txt`` or ``.txt.gz``; the sampling rate and the
    level masses come from a TOML sidecar (``<folder>.toml`` or ``run.toml`` inside it) or the
    arguments ``rate_hz=`` and ``masses=`` / ``weights=``.
 2. **CSV layout**: ``time_s``, ``table_accel_<unit>``, optional ``table_disp_<unit>``, and per
@@ -51,9 +52,9 @@ against the isolator displacement d_0 = ``disp[:, 0]``.
 from __future__ import annotations
 
 import gzip
-import io
 import math
 import warnings
+import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -93,6 +94,8 @@ MASS_UNITS = {"t": 1.0, "kg": 0.001}
 WEIGHT_UNITS = {"kN": 1.0, "N": 0.001, "MN": 1000.0}
 
 _DATA = Path(__file__).with_name("data") / "shake_table_bncs"
+_MIN_FILTER_SAMPLES = 15
+"""sosfiltfilt's default pad length for the 4th-order low-pass of :func:`check_consistency`."""
 
 
 class ConsistencyWarning(UserWarning):
@@ -390,7 +393,14 @@ def _sidecar_levels(data: Mapping[str, Any], where: str) -> tuple[list[str] | No
     if extra:
         raise ValueError(f"{where}: unknown [levels] key(s) {', '.join(extra)}; "
                          f"accepted: {', '.join(sorted(known))}")
-    names = [str(s) for s in lv["names"]] if "names" in lv else None
+    names = None
+    if "names" in lv:
+        names = lv["names"]
+        if not isinstance(names, list) or not names or not all(isinstance(x, str) for x in names):
+            raise ValueError(f"{where}: [levels] names = {names!r} is invalid: expected a non-empty list of "
+                             "strings (bottom-up)")
+        if len(set(names)) != len(names):
+            raise ValueError(f"{where}: [levels] names = {names!r} repeats a label; expected distinct names")
     if "masses" in lv and "weights" in lv:
         raise ValueError(f"{where}: give [levels] masses or weights, not both")
     masses = None
@@ -405,7 +415,9 @@ def _sidecar_levels(data: Mapping[str, Any], where: str) -> tuple[list[str] | No
         if unit not in WEIGHT_UNITS:
             raise ValueError(f"{where}: weight_unit = {unit!r} is missing or unknown; expected one of "
                              f"{', '.join(WEIGHT_UNITS)} (weights need a stated unit)")
-        g = float(lv.get("g", G))
+        g = lv.get("g", G)
+        if isinstance(g, bool) or not isinstance(g, (int, float)) or not (math.isfinite(g) and g > 0):
+            raise ValueError(f"{where}: [levels] g = {g!r} is invalid: expected a finite number > 0 [m/s^2]")
         masses = _numbers(lv["weights"], f"{where}: [levels] weights") * WEIGHT_UNITS[unit] / g
     return names, masses
 
@@ -448,17 +460,28 @@ def _level_masses(masses, weights, weight_unit: str, side_masses, n_levels: int,
 def _load_column_file(path: Path) -> np.ndarray:
     try:
         if path.suffix == ".gz":
-            with gzip.open(path, "rt") as fh:
+            with gzip.open(path, "rt", encoding="utf-8") as fh:
                 text = fh.read()
         else:
-            text = path.read_text()
-        a = np.loadtxt(io.StringIO(text), dtype=float, ndmin=1).reshape(-1)
-    except (OSError, ValueError, EOFError) as exc:
+            text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a UTF-8 text file (byte {exc.start} is not UTF-8 text: a binary "
+                         "file, or another encoding); expected one column of numbers") from None
+    except (OSError, EOFError, zlib.error) as exc:  # a corrupt .gz: BadGzipFile, EOFError or zlib.error
         raise ValueError(f"{path}: cannot be read as one column of numbers ({exc})") from None
-    bad = np.flatnonzero(~np.isfinite(a))
-    if bad.size:
-        raise ValueError(f"{path}: value {a[bad[0]]!r} at line {bad[0] + 1} is not finite")
-    return a
+    values: list[float] = []
+    for i, line in enumerate(text.splitlines(), start=1):  # one value per line, or rows of values
+        for tok in line.split("#", 1)[0].split():
+            try:
+                x = float(tok)
+            except ValueError:
+                raise ValueError(f"{path}, line {i}: {tok[:40]!r} is not a number") from None
+            if not math.isfinite(x):
+                raise ValueError(f"{path}, line {i}: value {tok!r} is not finite")
+            values.append(x)
+    if not values:
+        raise ValueError(f"{path}: no values (empty file); expected numbers, one per line")
+    return np.asarray(values, dtype=float)
 
 
 def _find(folder: Path, stem: str) -> Path | None:
@@ -485,30 +508,39 @@ def _read_folder(folder: Path, name, rate_hz, masses, weights, weight_unit):
     if n == 0:
         raise ValueError(f"{folder}: no acceleration files a1, a2, ... (.txt or .txt.gz) in this folder")
     chans: dict[str, np.ndarray] = {}
+    files: dict[str, Path] = {}
     for stem in [*(f"a{i}" for i in range(1, n + 1)), *(f"d{i}" for i in range(1, n + 1)), "u"]:
         p = _find(folder, stem)
         if p is None:
             raise ValueError(f"{folder}: file {stem}.txt(.gz) is missing "
                              f"(folder layout: a1..a{n}, d1..d{n}, u, du)")
-        chans[stem] = _load_column_file(p)
+        chans[stem], files[stem] = _load_column_file(p), p
     p = _find(folder, "du")
     if p is not None:
-        chans["du"] = _load_column_file(p)
+        chans["du"], files["du"] = _load_column_file(p), p
     lengths = {k: v.size for k, v in chans.items()}
     if len(set(lengths.values())) != 1:
         ref = chans["u"].size
         odd = next(k for k, v in lengths.items() if v != ref)
-        raise ValueError(f"{folder}: file {odd} has {lengths[odd]} values but u has {ref}; all channels must "
-                         "have the same length")
+        raise ValueError(f"{folder}: file {files[odd].name} has {lengths[odd]} values but {files['u'].name} "
+                         f"has {ref}; all channels must have the same length")
     rate = rate_hz if rate_hz is not None else side.get("rate_hz")
     if rate is None:
         raise ValueError(f"{folder}: the sampling rate is not stated: give rate_hz= (BNCS: 200) or "
                          "rate_hz in run.toml")
-    rate = float(rate)
+    try:
+        if isinstance(rate, bool):
+            raise TypeError
+        rate = float(rate)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: rate_hz = {rate!r} is invalid: expected a number [Hz]") from None
     if not (math.isfinite(rate) and rate > 0):
         raise ValueError(f"{where}: rate_hz = {rate!r} is invalid: expected a finite number > 0 Hz")
     side_names, side_masses = _sidecar_levels(side, where)
     m = _level_masses(masses, weights, weight_unit, side_masses, n, where)
+    if side_names is not None and len(side_names) != n:
+        raise ValueError(f"{where}: [levels] names has {len(side_names)} labels but the folder has {n} "
+                         f"levels (a1..a{n})")
     names = side_names or [f"a{i}" for i in range(n, 0, -1)]
     nt = chans["u"].size
     order = list(range(n, 0, -1))  # bottom-up: aN (base slab) ... a1 (roof)
@@ -522,7 +554,8 @@ def _read_folder(folder: Path, name, rate_hz, masses, weights, weight_unit):
         level_names=tuple(names),
         table_disp=chans.get("du"),
         source=str(folder),
-        meta={"layout": "folder", "rate_hz": rate},
+        meta={"layout": "folder", "rate_hz": rate,
+              "rate_source": "the argument rate_hz" if rate_hz is not None else where},
     )
 
 
@@ -554,11 +587,13 @@ def _unit_of(col: str, kind: str, table: dict[str, float], side_units: Mapping[s
 def _read_csv(path: Path, name, masses, weights, weight_unit):
     try:
         df = pd.read_csv(path)
-    except (OSError, ValueError, EOFError) as exc:
+    except (OSError, ValueError, EOFError, zlib.error) as exc:
         raise ValueError(f"{path}: cannot be read as CSV ({exc})") from None
     side = _csv_sidecar(path)
     where = str(path)
     units = side.get("units", {})
+    if not isinstance(units, Mapping):
+        raise ValueError(f"{side['_path']}: [units] must be a table (accel = ..., disp = ...), got {units!r}")
     cols = [str(c).strip() for c in df.columns]
     df.columns = cols
 
@@ -566,8 +601,10 @@ def _read_csv(path: Path, name, masses, weights, weight_unit):
         s = pd.to_numeric(df[col], errors="coerce").to_numpy(dtype=float)
         bad = np.flatnonzero(~np.isfinite(s))
         if bad.size:
-            raise ValueError(f"{where}: column {col!r}, row {bad[0] + 2}: value {df[col].iloc[bad[0]]!r} is "
-                             "not a finite number")
+            v = df[col].iloc[bad[0]]
+            shown = repr(v) if isinstance(v, str) else repr(float(v))
+            raise ValueError(f"{where}: column {col!r}, row {bad[0] + 2}: value {shown} is not a finite "
+                             "number")
         return s
 
     def pick(prefix: str, required: bool) -> str | None:
@@ -593,6 +630,12 @@ def _read_csv(path: Path, name, masses, weights, weight_unit):
         if not found:
             raise ValueError(f"{where}: no <LEVEL>_accel_abs_<unit> columns; columns are {', '.join(cols)}")
         side_names = found  # file order, taken as bottom-up
+    else:
+        for lvl in side_names:
+            for kind in ("accel_abs", "disp_rel"):
+                if pick(f"{lvl}_{kind}", False) is None:
+                    raise ValueError(f"{where}: no column {lvl}_{kind}_<unit> for level {lvl!r} of [levels] "
+                                     f"names in {side['_path']}; columns are {', '.join(cols)}")
     accel, disp = [], []
     for lvl in side_names:
         ac = pick(f"{lvl}_accel_abs", True)
@@ -660,7 +703,15 @@ def read_run(
     else:
         run = _read_csv(p, name, masses, weights, weight_unit)
     if check:
-        rep = check_consistency(run, cutoff_hz=cutoff_hz, tol=tol)
+        if run.time.size <= _MIN_FILTER_SAMPLES:
+            raise ValueError(f"{run.source}: {run.time.size} samples are too few for the consistency check "
+                             f"(the low-pass needs more than {_MIN_FILTER_SAMPLES}); pass check=False")
+        try:
+            rep = check_consistency(run, cutoff_hz=cutoff_hz, tol=tol)
+        except ValueError as exc:
+            rate = (f" (rate_hz = {run.meta['rate_hz']!r} Hz from {run.meta['rate_source']})"
+                    if "rate_source" in run.meta else "")
+            raise ValueError(f"{run.source}{rate}: {exc}") from None
         run = replace(run, consistency=rep)
         if not rep.ok:
             warnings.warn(f"run {run.name!r} ({run.source}): " + str(rep), ConsistencyWarning, stacklevel=2)
