@@ -219,7 +219,8 @@ class Problem:
 
     def residuals(self, F: np.ndarray) -> np.ndarray:
         """Residuals (measured - model) at the likelihood's samples, for full-history forces ``F``."""
-        return self._obs_l[None, :] - np.atleast_2d(F)[:, self.lik_idx]
+        F = np.atleast_2d(F)
+        return self._obs_l[None, :] - (F[:, self.lik_idx] if self.subsampled else F)
 
     def full_params(self, theta: np.ndarray) -> np.ndarray:
         """(nw, n_params) law parameter rows (free + fixed + defaults) for ``theta`` rows."""
