@@ -220,3 +220,27 @@ def test_a_dense_records_stored_posterior_is_small(dense):
     assert cal.idata.log_likelihood["force"].sizes["sample"] == cal.diagnostics["likelihood_points"]
     elpd, se, per = elpd_loco(cal)  # cycle labels follow the stored subsample
     assert np.isfinite(elpd) and len(per) == 12
+
+
+def test_the_cli_checkpoints_to_its_output_folder_and_says_why_it_stopped(capsys, tmp_path):
+    """Default checkpoint DIR/chain.h5; the summary names the stop reason, the cap and the budget;
+    the warning's advice matches fixed --steps (never the step cap)."""
+    csv = tmp_path / "small.csv"
+    test = small_test(300)
+    csv.write_text("time_s,disp_mm,force_kN\n" + "\n".join(
+        f"{t:.17g},{1e3 * u:.17g},{f:.17g}" for t, u, f in zip(test.time, test.disp, test.force)) + "\n")
+    out = tmp_path / "out"
+    rc, so, err = _cli(capsys, "calibrate", str(csv), "--law", "plasticity", "--out", str(out),
+                       "--steps", "10", "--walkers", "16", "--quiet", "--max-steps", "5000")
+    assert rc == 0, err
+    assert (out / "chain.h5").exists()
+    assert ("stopped: fixed --steps done after 10 steps x 16 walkers (--max-steps 5000, "
+            "--time-budget 300 s") in so
+    assert "NOT converged: the 10 fixed steps were too few" in err and "step cap" not in err
+
+
+def test_the_cli_exits_2_when_the_budget_ends_before_any_sample(capsys, tmp_path):
+    rc, _, err = _cli(capsys, "calibrate", "protocol1", "--law", "plasticity", "--out",
+                      str(tmp_path / "o"), "--time-budget", "0.001", "--quiet")
+    assert rc == 2
+    assert "time budget of 0 s" in err and "nothing was sampled" in err and "--time-budget" in err

@@ -65,7 +65,10 @@ class Calibration:
     converged : chain >= 50 autocorrelation times, tau stable and R-hat < 1.05 for all.
     fixed : values held fixed (geometry, optional parameters at their defaults, user ``fixed=``).
     noise : "iid" or "ar1".
-    diagnostics : acceptance, tau, ESS, R-hat, steps, walkers, burn, thin, evaluations, seconds, note.
+    diagnostics : acceptance, tau, ESS, R-hat, steps, walkers, burn, thin, evaluations, seconds, note,
+        stopped_by, max_steps, time_budget [s], resumed_steps, points, likelihood_points,
+        likelihood_stride, stored_draws, max_draws.
+    stopped_by : (property) why sampling stopped: "converged", "steps", "max_steps", "time_budget".
     """
 
     law: str

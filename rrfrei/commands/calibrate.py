@@ -198,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
         checkpoint = None
     else:
         checkpoint = Path(args.checkpoint)
-    budget = TimeBudget(args.time_budget, what="rrfrei calibrate", option="--time-budget")
+    budget = TimeBudget(args.time_budget, what="calibrate", option="--time-budget")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
         try:
@@ -209,7 +209,7 @@ def run(args: argparse.Namespace) -> int:
                             likelihood_points=args.likelihood_points,
                             checkpoint_mismatch="restart" if default_ck else "error")
         except BudgetExceeded as exc:
-            print(f"rrfrei calibrate: error: {exc}", file=sys.stderr)
+            print(f"rrfrei {exc}", file=sys.stderr)  # "rrfrei calibrate: time budget of ..."
             return 2
     for w in caught:
         if not issubclass(w.category, ConvergenceWarning) and "time budget" not in str(w.message):
