@@ -197,7 +197,7 @@ def command_row(label: str, csv: Path, extra: list[str]) -> str:
     print(f"{label}: {wall:.1f} s, exit {run.returncode}\n{run.stderr[-1500:]}", flush=True)
     if run.returncode != 0:
         return f"| {label} | {wall:.1f} | failed (exit {run.returncode}) |" + " |" * 9
-    r = json.loads((out / "result.json").read_text())
+    r = {**json.loads((out / "result.json").read_text()), **json.loads((out / "run.json").read_text())}
     mb = (out / "posterior.nc").stat().st_size / 1e6
     ck = out / "chain.h5"
     ck_mb = ck.stat().st_size / 1e6 if ck.exists() else float("nan")

@@ -13,9 +13,9 @@ Example:
   rrfrei calibrate protocol1 --law plasticity --steps 2000 --out cal --json   # bundled test
   rrfrei calibrate SPC1.csv --law bouc_wen --disp-col 'Lead Actuator Displacment:mm' \\
       --force-col 'Lead Actuator Force:kN' --out spc1 --time-budget 600
-Writes DIR/posterior.nc, DIR/summary.csv, DIR/cycles.csv and figures (pair plot, predictive loop
-with band, energy per cycle, cumulative energy, held-out predictions), and keeps the chain in
-DIR/chain.h5: a run stopped by --time-budget (exit 0, with a warning) continues where it stopped
+Writes DIR/posterior.nc, DIR/summary.csv, DIR/cycles.csv, DIR/run.json (why sampling stopped,
+steps, tau, R-hat, ESS) and figures (pair plot, predictive loop with band, energy per cycle,
+cumulative energy, held-out predictions), and keeps the chain in DIR/chain.h5: a run stopped by --time-budget (exit 0, with a warning) continues where it stopped
 when the same command is run again.
 """
 
@@ -266,20 +266,18 @@ def run(args: argparse.Namespace) -> int:
         "nrmse": pred.nrmse,
         "coverage": pred.coverage,
         "converged": bool(cal.converged),
-        "stopped_by": cal.stopped_by,
-        "steps": int(d["steps"]),
-        "walkers": int(d["walkers"]),
-        "max_steps": int(d["max_steps"]),
-        "time_budget_s": d["time_budget"],
-        "seconds": float(d["seconds"]),
-        "tau_max": max(d["tau"].values()),
-        "rhat_max": float(d["rhat_max"]),
-        "ess_min": float(d["ess_min"]),
-        "likelihood_points": int(d["likelihood_points"]),
-        "points": int(d["points"]),
         "holdout": hold,
     }
     (out / "result.json").write_text(json.dumps(result, indent=2))
+    run_info = {  # how the run went (result.json and --json keep their documented keys)
+        "stopped_by": cal.stopped_by, "converged": bool(cal.converged), "steps": int(d["steps"]),
+        "walkers": int(d["walkers"]), "max_steps": int(d["max_steps"]), "time_budget_s": d["time_budget"],
+        "seconds": float(d["seconds"]), "tau_max": max(d["tau"].values()), "rhat_max": float(d["rhat_max"]),
+        "ess_min": float(d["ess_min"]), "likelihood_points": int(d["likelihood_points"]),
+        "points": int(d["points"]), "stored_draws": int(d["stored_draws"]),
+        "checkpoint": None if checkpoint is None else str(checkpoint),
+    }
+    (out / "run.json").write_text(json.dumps(run_info, indent=2))
     if args.json:
         print(json.dumps(result))
     else:
