@@ -134,7 +134,7 @@ def _cli(capsys, *argv):
 def test_the_cli_shows_the_cap_budget_and_likelihood_options_in_help(capsys):
     rc, out, _ = _cli(capsys, "calibrate", "--help")
     assert rc == 0
-    for opt in ("--max-steps", "--time-budget", "--likelihood-points", "--checkpoint", "--quiet"):
+    for opt in ("--max-steps", "--time-budget", "--likelihood-points", "--checkpoint", "--quiet", "--fix"):
         assert opt in out
     assert "20000" in out and "300" in out
 
@@ -142,7 +142,7 @@ def test_the_cli_shows_the_cap_budget_and_likelihood_options_in_help(capsys):
 @pytest.mark.parametrize("option, value", [
     ("--max-steps", "0"), ("--max-steps", "-3"), ("--max-steps", "many"),
     ("--time-budget", "0"), ("--time-budget", "-10"), ("--time-budget", "soon"),
-    ("--likelihood-points", "1"), ("--likelihood-points", "x"),
+    ("--likelihood-points", "1"), ("--likelihood-points", "x"), ("--fix", "alpha2"), ("--fix", "mu=big"),
 ])
 def test_the_cli_rejects_bad_values_with_exit_2_naming_the_option(capsys, tmp_path, option, value):
     rc, _, err = _cli(capsys, "calibrate", "protocol1", "--law", "plasticity", "--out",

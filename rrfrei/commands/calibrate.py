@@ -12,11 +12,12 @@ Example:
   rrfrei calibrate protocol1.csv --law bouc_wen --holdout protocol2.csv protocol3.csv --out cal
   rrfrei calibrate protocol1 --law plasticity --steps 2000 --out cal --json   # bundled test
   rrfrei calibrate SPC1.csv --law bouc_wen --disp-col 'Lead Actuator Displacment:mm' \\
-      --force-col 'Lead Actuator Force:kN' --out spc1 --time-budget 600
+      --force-col 'Lead Actuator Force:kN' --fix alpha2=0 --fix mu=2 --out spc1
 Writes DIR/posterior.nc, DIR/summary.csv, DIR/cycles.csv, DIR/run.json (why sampling stopped,
 steps, tau, R-hat, ESS) and figures (pair plot, predictive loop with band, energy per cycle,
-cumulative energy, held-out predictions), and keeps the chain in DIR/chain.h5: a run stopped by --time-budget (exit 0, with a warning) continues where it stopped
-when the same command is run again.
+cumulative energy, held-out predictions), and keeps the chain in DIR/chain.h5: a run stopped by
+--time-budget (exit 0, with a warning) continues where it stopped when the same command is run
+again.
 """
 
 DEFAULT_TIME_BUDGET = 300.0
@@ -37,6 +38,18 @@ def _time_budget(text: str) -> float | None:
     if not value > 0 or value != value:
         raise argparse.ArgumentTypeError(f"expected a number of seconds > 0 or 'none', got {text!r}")
     return None if value == float("inf") else value
+
+
+def _fix(text: str) -> tuple[str, float]:
+    """argparse type of ``--fix``: ``NAME=VALUE`` (a law parameter held at VALUE, SI units)."""
+    name, sep, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = None
+    if not sep or not name.strip() or number is None or number != number:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE (e.g. alpha2=0), got {text!r}")
+    return name.strip(), number
 
 
 def _likelihood_points(text: str) -> int | str:
@@ -126,6 +139,9 @@ def register(sub) -> None:
                    help=f"samples the likelihood uses (the law always runs along the whole record): "
                         f"auto = all up to {DENSE_POINTS}, else every k-th sample, at most "
                         f"{LIKELIHOOD_POINTS} (default auto)")
+    p.add_argument("--fix", type=_fix, action="append", default=[], metavar="NAME=VALUE",
+                   help="hold a law parameter fixed (repeatable), e.g. --fix alpha2=0 --fix mu=2 "
+                        "to drop bouc_wen's hardening term when the test shows none")
     p.add_argument("--quiet", action="store_true", help="no progress bars (same as --no-progress)")
     add_common(p)
     p.set_defaults(func=run)
@@ -206,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
                             steps=args.steps, priors=args.priors, checkpoint=checkpoint,
                             progress=not (args.no_progress or args.quiet or args.json),
                             max_steps=args.max_steps, time_budget=budget,
-                            likelihood_points=args.likelihood_points,
+                            likelihood_points=args.likelihood_points, fixed=dict(args.fix) or None,
                             checkpoint_mismatch="restart" if default_ck else "error")
         except BudgetExceeded as exc:
             print(f"rrfrei {exc}", file=sys.stderr)  # "rrfrei calibrate: time budget of ..."
