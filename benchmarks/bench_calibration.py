@@ -123,6 +123,7 @@ def main() -> None:
     walls = [w for _, w, _, _ in runs]
     warn = "; ".join(f"seed {s}: {w}" for s, _, _, w in runs if w)
     # --- whole commands: 2401-sample bouc_wen test and the dense SPC1 record ------------------
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())  # before the commands: 1, 5, 15 min
     cmd_rows = [command_row("2401-sample bouc_wen (eta = 1, noise 0.1 kN)", bouc_wen_csv(), [])]
     if SPC1.exists():
         cmd_rows.append(command_row("SPC1 (33,028 samples, real CLT connection)", SPC1, [
@@ -135,13 +136,12 @@ def main() -> None:
     out = subprocess.run([sys.executable, "-c", COLD.format(theta=list(theta[0]))], env=env,
                          capture_output=True, text=True, check=True)
     cold = float(out.stdout.strip().splitlines()[-1])
-    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
     md = f"""## bench_calibration
 
 Full `bouc_wen` posterior on the bundled SYNTHETIC protocol 1 (2401 samples, 7 free parameters +
 sigma, beta held; defaults: CMA-ES optimum and least-squares polish, walkers drawn from the
-Laplace approximation, emcee until >= 50 tau with tau stable and R-hat < 1.04, cap {MAX_STEPS}
-steps), seeds {", ".join(map(str, SEEDS))}:
+Laplace approximation, emcee until bulk and tail ESS >= 400, R-hat < 1.04 and >= 10 stable tau,
+cap {MAX_STEPS} steps), seeds {", ".join(map(str, SEEDS))}:
 
 {HEADER}
 |---|---:|---:|---:|---|---:|---:|---:|---|---:|
