@@ -2,9 +2,16 @@
 against the study's workflow, an openseespy forward model per evaluation, in the same run.
 
 * full posterior: ``rrfrei.calibrate(load_test("protocol1"), "bouc_wen", seed=s)`` with the
-  defaults (CMA-ES optimum, then emcee until >= 50 autocorrelation times, capped at
-  ``MAX_STEPS``) for each of ``SEEDS``, since the chain length to convergence varies with the
-  seed: wall time, steps, convergence, evaluations per second;
+  defaults (CMA-ES optimum, then emcee until the convergence rule of
+  ``rrfrei.calibration.sampler`` holds, capped at ``MAX_STEPS``) for each of ``SEEDS``, since the
+  chain length to convergence varies with the seed: wall time, steps, convergence, evaluations
+  per second;
+* the whole command ``rrfrei calibrate T.csv --law bouc_wen --out DIR`` (defaults: checkpoint,
+  300 s budget, figures) on a 2401-sample test made with bouc_wen (eta = 1) on protocol 1 plus
+  Gaussian noise of sd 0.1 kN (seed 42), in a fresh process: wall time (target <= 15 s);
+* the dense real record ``../shared/data/hysteresis/clt_connection_tannert_spc1/SPC1.csv``
+  (33,028 samples, a CLT connection) through the same command: wall time (target <= 180 s),
+  why it stopped, steps, tau, R-hat, ESS, NRMSE and the size of posterior.nc (target <= 10 MB);
 * one evaluation: the batched Numba log-likelihood (32 walkers, ``prange``) per parameter set,
   against openseespy driving the same ``elastomericBearingBoucWen`` element along the same 2401
   samples and the same Gaussian log-likelihood (model build included, as a per-evaluation
@@ -13,14 +20,17 @@ against the study's workflow, an openseespy forward model per evaluation, in the
   cache).
 
 Targets: full posterior <= 30 s on 2 cores; >= 100x per evaluation.  Section ``bench_calibration``.
+Times depend on the machine's load (printed with the results); nothing is asserted.
 Run: ``python benchmarks/bench_calibration.py``.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -37,6 +47,11 @@ import rrfrei  # noqa: E402
 from rrfrei.calibration import ConvergenceWarning, calibrate, setup_problem  # noqa: E402
 
 MAX_STEPS = 20000  # the package default cap: report the real time to convergence
+SPC1 = HERE.parents[1] / "shared" / "data" / "hysteresis" / "clt_connection_tannert_spc1" / "SPC1.csv"
+CMD_HEADER = ("| test | wall [s] | stopped by | steps x walkers | max tau | R-hat max | ESS min "
+              "| likelihood points | NRMSE | posterior.nc [MB] | chain.h5 [MB] | converged |\n"
+              "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---|")
+CLI = [sys.executable, "-c", "import sys; from rrfrei.cli import main; sys.exit(main())", "calibrate"]
 N_OPS = 20  # openseespy evaluations timed
 SEEDS = (0, 1, 2)
 HEADER = ("| seed | wall [s] | optimum [s] | sampling [s] | steps x walkers | max tau | R-hat max "
@@ -107,6 +122,15 @@ def main() -> None:
         )
     walls = [w for _, w, _, _ in runs]
     warn = "; ".join(f"seed {s}: {w}" for s, _, _, w in runs if w)
+    # --- whole commands: 2401-sample bouc_wen test and the dense SPC1 record ------------------
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())  # before the commands: 1, 5, 15 min
+    cmd_rows = [command_row("2401-sample bouc_wen (eta = 1, noise 0.1 kN)", bouc_wen_csv(), [])]
+    if SPC1.exists():
+        cmd_rows.append(command_row("SPC1 (33,028 samples, real CLT connection)", SPC1, [
+            "--disp-col", "Lead Actuator Displacment:mm", "--force-col", "Lead Actuator Force:kN"]))
+    else:
+        cmd_rows.append(f"| SPC1 | missing: {SPC1.name} not found next to the repository |"
+                        + " |" * 11)
     # --- cold start ------------------------------------------------------------------------------
     env = dict(os.environ)
     out = subprocess.run([sys.executable, "-c", COLD.format(theta=list(theta[0]))], env=env,
@@ -116,8 +140,8 @@ def main() -> None:
 
 Full `bouc_wen` posterior on the bundled SYNTHETIC protocol 1 (2401 samples, 7 free parameters +
 sigma, beta held; defaults: CMA-ES optimum and least-squares polish, walkers drawn from the
-Laplace approximation, emcee until >= 50 tau with tau stable and R-hat < 1.04, cap {MAX_STEPS}
-steps), seeds {", ".join(map(str, SEEDS))}:
+Laplace approximation, emcee until bulk and tail ESS >= 400, R-hat < 1.04 and >= 10 stable tau,
+cap {MAX_STEPS} steps), seeds {", ".join(map(str, SEEDS))}:
 
 {HEADER}
 |---|---:|---:|---:|---|---:|---:|---:|---|---:|
@@ -134,9 +158,53 @@ Full posterior wall time: median {np.median(walls):.1f} s, worst {max(walls):.1f
 | same log-likelihood (relative difference) | {agree:.1e} |
 | cold start (fresh process: import + first log posterior, warm cache) | {cold:.2f} s |
 {("Warning: " + warn) if warn else ""}
+
+Whole `rrfrei calibrate --law bouc_wen` commands (defaults: checkpoint in the output folder,
+300 s budget, predictive checks and figures; fresh process, warm Numba cache; load average
+{load}):
+
+{CMD_HEADER}
+{chr(10).join(cmd_rows)}
+
+Targets: 2401 samples <= 15 s; SPC1 converged in <= 180 s with posterior.nc <= 10 MB.
 """
     print(md)
     write_section("bench_calibration", md)
+
+
+def bouc_wen_csv() -> Path:
+    """The 2401-sample test of the command benchmark, written to a temporary CSV."""
+    import pandas as pd
+
+    from rrfrei.protocols import protocol1
+
+    t, u = protocol1()
+    p = dict(P, eta=1.0)
+    f = rrfrei.simulate_force("bouc_wen", p, u, time=t)
+    f = f + 0.1 * np.random.default_rng(42).standard_normal(u.size)
+    path = Path(tempfile.mkdtemp(prefix="bench_cal_")) / "bouc_wen_2401.csv"
+    pd.DataFrame({"time_s": t, "disp_mm": 1e3 * u, "force_kN": f}).to_csv(path, index=False)
+    return path
+
+
+def command_row(label: str, csv: Path, extra: list[str]) -> str:
+    """Run the command in a fresh process on ``csv`` and return its table row."""
+    out = Path(tempfile.mkdtemp(prefix="bench_cal_out_"))
+    t0 = time.perf_counter()
+    run = subprocess.run([*CLI, str(csv), "--law", "bouc_wen", "--out", str(out), "--quiet", *extra],
+                         capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    print(f"{label}: {wall:.1f} s, exit {run.returncode}\n{run.stderr[-1500:]}", flush=True)
+    if run.returncode != 0:
+        return f"| {label} | {wall:.1f} | failed (exit {run.returncode}) |" + " |" * 9
+    r = {**json.loads((out / "result.json").read_text()), **json.loads((out / "run.json").read_text())}
+    mb = (out / "posterior.nc").stat().st_size / 1e6
+    ck = out / "chain.h5"
+    ck_mb = ck.stat().st_size / 1e6 if ck.exists() else float("nan")
+    lik = f"{r['likelihood_points']} of {r['points']}"
+    return (f"| {label} | {wall:.1f} | {r['stopped_by']} | {r['steps']} x {r.get('walkers', '')} "
+            f"| {r['tau_max']:.0f} | {r['rhat_max']:.3f} | {r['ess_min']:.0f} | {lik} "
+            f"| {100 * r['nrmse']:.2f} % | {mb:.1f} | {ck_mb:.1f} | {r['converged']} |")
 
 
 if __name__ == "__main__":

@@ -35,9 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
+from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.calibration.checks import predict
 from rrfrei.calibration.compare import compare, elpd_loco  # the function shadows the module name
 from rrfrei.calibration.likelihood import NOISE_MODELS, Problem
+from rrfrei.calibration.likelihood import likelihood_points as _lik_points
 from rrfrei.calibration.priors import resolve_priors
 from rrfrei.calibration.results import Calibration, build_idata, loglik_pointwise, posterior_draws
 from rrfrei.calibration.sampler import MAX_STEPS, find_map, load_optimum, run_chain, save_optimum
@@ -47,6 +49,7 @@ from rrfrei.laws import LawSpec, get
 __all__ = [
     "Calibration",
     "ConvergenceWarning",
+    "advice",
     "calibrate",
     "compare",
     "elpd_loco",
@@ -62,8 +65,10 @@ class ConvergenceWarning(UserWarning):
 
 
 def setup_problem(test: ShearTest, law: str | LawSpec, *, priors=None, noise: str = "iid",
-                  fixed: Mapping[str, float] | None = None) -> Problem:
-    """The :class:`Problem` (free/fixed split, priors) that :func:`calibrate` samples."""
+                  fixed: Mapping[str, float] | None = None,
+                  likelihood_points: int | str | None = "auto") -> Problem:
+    """The :class:`Problem` (free/fixed split, priors, likelihood samples) that :func:`calibrate`
+    samples; ``likelihood_points`` as in :func:`.likelihood.likelihood_points`."""
     spec = get(law)
     if noise not in NOISE_MODELS:
         raise ValueError(f"noise must be one of {', '.join(NOISE_MODELS)}, got {noise!r}")
@@ -73,7 +78,53 @@ def setup_problem(test: ShearTest, law: str | LawSpec, *, priors=None, noise: st
         source=str(test.source or "the test file"),
     )
     pri = resolve_priors(spec, free, np.asarray(test.force), np.asarray(test.disp), noise, priors)
-    return Problem(spec, test, free, all_fixed, noise, dict(pri))
+    points = "auto" if likelihood_points is None else likelihood_points
+    idx = _lik_points(int(np.asarray(test.disp).size), points)
+    return Problem(spec, test, free, all_fixed, noise, dict(pri), lik_idx=idx)
+
+
+def _fingerprint(problem: Problem, nw: int, seed: int) -> str:
+    """Hash of what a checkpoint's chain depends on: data, law, sampled names, noise, priors,
+    likelihood samples, ensemble size and seed."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for arr in (problem.test.disp, problem.test.force, problem.lik_idx):
+        h.update(np.ascontiguousarray(arr).tobytes())
+    h.update(repr((problem.spec.name, problem.names, problem.noise, nw, int(seed),
+                   sorted(problem.fixed.items()),
+                   sorted((k, p.kind, p.a, p.b) for k, p in problem.priors.items()))).encode())
+    return h.hexdigest()[:16]
+
+
+def advice(diagnostics: Mapping, *, cli: bool = False) -> str:
+    """One sentence: why the chain stopped unconverged and what to do, matching what happened.
+
+    ``cli`` names the command-line options (``--max-steps``) instead of the API's arguments.
+    """
+    d = diagnostics
+    opt = (lambda api, flag: flag) if cli else (lambda api, flag: api)
+    taus = [v for v in dict(d.get("tau", {})).values() if v == v]
+    tau = f"tau ≈ {max(taus):.0f} steps" if taus else "tau not estimable"
+    stats = f"{tau}, R-hat {d.get('rhat_max', float('nan')):.3f}, ESS {d.get('ess_min', float('nan')):.0f}"
+    why = d.get("stopped_by")
+    steps = int(d.get("steps", 0))
+    if why == "time_budget":
+        return (f"stopped by the time budget of {d.get('time_budget', float('nan')):.0f} s after "
+                f"{steps} steps ({stats}); all {steps} steps are kept. Rerun with the same "
+                f"{opt('checkpoint=', '--checkpoint')} to continue the chain, or raise "
+                f"{opt('time_budget=', '--time-budget')}")
+    if why == "max_steps":
+        extra = ("" if d.get("likelihood_stride", 1) > 1 or d.get("points", 0) <= 5000 else
+                 f", or use fewer likelihood points ({opt('likelihood_points=', '--likelihood-points')})")
+        return (f"stopped at the step cap of {int(d.get('max_steps', steps))} steps ({stats}): raise "
+                f"{opt('max_steps=', '--max-steps')} (a rerun with the same "
+                f"{opt('checkpoint=', '--checkpoint')} continues the chain){extra}")
+    if why == "steps":
+        return (f"the {steps} fixed steps were too few ({stats}): leave out "
+                f"{opt('steps=', '--steps')} to run to convergence (up to "
+                f"{opt('max_steps=', '--max-steps')}), or ask for more steps")
+    return f"{stats}: the chain met the step rule but not the final R-hat < 1.05 check; run longer"
 
 
 def calibrate(
@@ -89,6 +140,9 @@ def calibrate(
     progress: bool = True,
     fixed: Mapping[str, float] | None = None,
     max_steps: int = MAX_STEPS,
+    time_budget: float | TimeBudget | None = None,
+    likelihood_points: int | str | None = "auto",
+    checkpoint_mismatch: str = "error",
 ) -> Calibration:
     """Posterior of ``law``'s parameters given ``test``.
 
@@ -102,33 +156,62 @@ def calibrate(
         ``cd``) samples it instead of fixing it at its default.
     noise : ``"iid"`` Gaussian residuals or ``"ar1"`` (AR(1), unknown rho), see :mod:`.likelihood`.
     walkers : ensemble size (default max(32, 4 x sampled dimensions)).
-    steps : MCMC steps; None runs until the chain is >= 50 autocorrelation times long and tau is
-        stable, up to ``max_steps``.
+    steps : MCMC steps; None runs until the convergence rule of :mod:`.sampler` holds (bulk and
+        tail ESS >= 400, R-hat < 1.04, >= 10 stable autocorrelation times), up to ``max_steps``.
     seed : seed of the optimiser, the initial ball and the sampler.
-    checkpoint : HDF5 file (emcee backend); an existing one is resumed.
-    progress : show progress bars (tqdm).
+    checkpoint : HDF5 file (emcee layout); an existing one is resumed (the optimum is not searched
+        again and the chain continues from its last stored step).
+    progress : show progress bars (tqdm, stderr; one at a time, removed when done).
     fixed : values for law parameters to hold fixed (geometry defaults come from ``test.geometry``).
+    max_steps : step cap of a run to convergence (``steps=None``), default 20,000.
+    time_budget : wall-clock limit [s] of the optimum search plus the sampling (None: no limit),
+        or a :class:`~rrfrei.budget.TimeBudget` already running.  When it runs out, sampling
+        stops, the chain so far is kept (and checkpointed) and returned with
+        ``cal.stopped_by == "time_budget"``; a rerun with the same ``checkpoint`` continues it.
+        If it runs out before any step was sampled, :class:`~rrfrei.budget.BudgetExceeded` is
+        raised (the optimum, once found, is saved in the checkpoint).
+    likelihood_points : samples the likelihood uses: ``"auto"`` (all up to 5,000 samples, else a
+        regular subsample of at most 2,000), ``"all"`` or an integer; the law always runs along the
+        whole history (see :mod:`.likelihood`).  Reported in ``diagnostics``.
+    checkpoint_mismatch : ``"error"`` (default): a checkpoint made for other data, law, priors,
+        noise, likelihood points or walkers is a ValueError; ``"restart"``: it is overwritten.
 
     Returns
     -------
     Calibration
+        ``cal.stopped_by`` is ``"converged"``, ``"steps"`` (the fixed steps were run),
+        ``"max_steps"`` or ``"time_budget"``; ``cal.diagnostics`` holds the numbers.
 
     Warns
     -----
     ConvergenceWarning
-        the chain is shorter than 50 tau, tau is unstable or R-hat >= 1.05.
+        the chain did not meet the convergence rule or R-hat >= 1.05; the message says why it
+        stopped and what to do (:func:`advice`).
     """
+    import json
     import time
 
     t0 = time.perf_counter()
+    if isinstance(time_budget, TimeBudget):
+        budget = time_budget
+    else:
+        if time_budget is not None and (isinstance(time_budget, bool)
+                                        or not isinstance(time_budget, (int, float, np.number))):
+            raise ValueError(f"time_budget = {time_budget!r}: expected a number of seconds > 0 or None")
+        budget = TimeBudget(time_budget, what="calibrate", option="time_budget")
     if isinstance(test, (str, Path)):
         test = read_test(test)
     if not isinstance(test, ShearTest):
         raise ValueError(f"test must be a ShearTest or a CSV path, got {type(test).__name__}")
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 2:
+        raise ValueError(f"max_steps = {max_steps!r}: expected an integer >= 2")
+    if checkpoint_mismatch not in ("error", "restart"):
+        raise ValueError(f"checkpoint_mismatch = {checkpoint_mismatch!r}: expected 'error' or 'restart'")
     spec = get(law)
-    problem = setup_problem(test, spec, priors=priors, noise=noise, fixed=fixed)
+    problem = setup_problem(test, spec, priors=priors, noise=noise, fixed=fixed,
+                            likelihood_points=likelihood_points)
     if spec.uses_velocity and not test.has_time:
         warnings.warn(
             f"test {test.name!r} has no time column: law {spec.name!r} has rate-dependent terms, "
@@ -143,34 +226,49 @@ def calibrate(
         )
     if steps is not None and (not isinstance(steps, (int, np.integer)) or steps < 2):
         raise ValueError(f"steps must be an integer >= 2 or None (run to convergence), got {steps!r}")
+    fingerprint = _fingerprint(problem, nw + nw % 2, seed)
     stored = load_optimum(checkpoint) if checkpoint is not None else None
-    if stored is not None and stored.get("names") == list(problem.names) and stored.get("law") == spec.name:
+    if stored is not None and (stored.get("fingerprint", fingerprint) != fingerprint
+                               or stored.get("names") != list(problem.names)
+                               or stored.get("law") != spec.name):
+        if checkpoint_mismatch == "restart":
+            Path(checkpoint).unlink()
+            stored = None
+        else:
+            raise ValueError(
+                f"checkpoint {checkpoint} belongs to another run (law {stored.get('law')!r}, parameters "
+                f"{stored.get('names')}, or other data, priors, noise, walkers or likelihood points) "
+                f"than this one ({spec.name!r} {list(problem.names)}); use another path"
+            )
+    if stored is not None:
         theta0 = np.asarray(stored["theta"], dtype=float)
     else:
-        if stored is not None:
-            raise ValueError(
-                f"checkpoint {checkpoint} belongs to law {stored.get('law')!r} with parameters "
-                f"{stored.get('names')}; this run samples {spec.name!r} {list(problem.names)}"
-            )
-        theta0, _ = find_map(problem, seed)
+        try:
+            theta0, _ = find_map(problem, seed, budget=budget, progress=progress)
+        except BudgetExceeded:
+            raise BudgetExceeded(budget.message(
+                "it ran out during the search for the optimum, nothing was sampled")) from None
         if checkpoint is not None:
             Path(checkpoint).parent.mkdir(parents=True, exist_ok=True)
             save_optimum(checkpoint, {"law": spec.name, "names": list(problem.names),
-                                      "theta": [float(x) for x in theta0]})
+                                      "theta": [float(x) for x in theta0], "fingerprint": fingerprint})
     t_opt = time.perf_counter() - t0
     res = run_chain(problem, theta0, walkers=walkers, steps=steps, seed=seed, checkpoint=checkpoint,
-                    progress=progress, max_steps=max_steps)
+                    progress=progress, max_steps=max_steps, budget=budget)
     chain, logp = res.chain, res.log_prob
     n_steps, nw, _ = chain.shape
+    if n_steps < 4:
+        kept = "the optimum is saved in the checkpoint" if checkpoint is not None else "nothing kept"
+        raise BudgetExceeded(budget.message(
+            f"it ran out after the optimum search with {n_steps} MCMC steps, too few for a "
+            f"posterior ({kept})"))
     tmax = float(np.nanmax(res.tau)) if np.any(np.isfinite(res.tau)) else float("nan")
-    if math.isfinite(tmax):
-        burn = min(n_steps // 2, max(n_steps // 4, int(2 * tmax)))
-        thin = max(1, int(tmax / 2))
-    else:
-        burn, thin = n_steps // 2, 1
-    from rrfrei.calibration.results import MAX_DRAWS
+    burn = res.burn
+    thin = max(1, int(tmax / 2)) if math.isfinite(tmax) else 1
+    from rrfrei.calibration.results import MAX_DRAWS, MAX_DRAWS_DENSE
 
-    while ((n_steps - burn + thin - 1) // thin) * nw > MAX_DRAWS and thin < n_steps:
+    cap = MAX_DRAWS_DENSE if problem.subsampled else MAX_DRAWS
+    while ((n_steps - burn + thin - 1) // thin) * nw > cap and thin < n_steps:
         thin += 1
     # MAP: the best of the optimum and every sample
     lp0 = float(problem.log_prob(theta0[None, :])[0])
@@ -180,28 +278,37 @@ def calibrate(
         "acceptance": res.acceptance, "tau": {n: float(t) for n, t in zip(problem.names, res.tau)},
         "steps": int(n_steps), "walkers": int(nw), "burn": int(burn), "thin": int(thin),
         "evaluations": int(res.evals), "seconds_sampling": res.seconds, "seconds_optimum": t_opt,
-        "note": res.tau_note, "converged": False,
+        "note": res.tau_note, "converged": False, "stopped_by": res.stopped_by,
+        "max_steps": int(max_steps), "time_budget": budget.seconds,
+        "resumed_steps": int(res.resumed_steps), "points": problem.n_points,
+        "likelihood_points": problem.n_like,
+        "likelihood_stride": int(problem.lik_idx[1] - problem.lik_idx[0]) if problem.n_like > 1 else 1,
+        "ess_bulk_chain": res.ess_bulk, "ess_tail_chain": res.ess_tail, "rhat_chain": res.rhat,
+        "stored_draws": int(((n_steps - burn + thin - 1) // thin) * nw), "max_draws": int(cap),
     }
     idata = build_idata(problem, chain, logp, burn=burn, thin=thin, theta_map=theta_map,
                         fixed=problem.fixed, diagnostics=diagnostics, seed=seed)
     cal = Calibration.from_idata(idata)
     rhat = float(cal.summary["R-hat"].max())
     ess = float(cal.summary["ESS"].min())
-    converged = bool(res.converged_tau and rhat < 1.05)
+    converged = bool(res.converged_tau and rhat < 1.05 and res.rhat < 1.05)
     note = res.tau_note
     if rhat >= 1.05:
         note = (note + "; " if note else "") + f"R-hat up to {rhat:.3f} (>= 1.05)"
+    if converged and steps is None and res.stopped_by != "time_budget":
+        diagnostics["stopped_by"] = "converged"
     diagnostics.update({"converged": converged, "rhat_max": rhat, "ess_min": ess, "note": note,
                         "seconds": time.perf_counter() - t0})
-    import json
-
     idata.posterior.attrs["diagnostics"] = json.dumps(diagnostics)
     idata.posterior.attrs["converged"] = int(converged)
     cal = Calibration.from_idata(idata)
     if not converged:
         warnings.warn(
-            f"calibration of {spec.name!r} on {test.name!r} has NOT converged: {note}. Run longer "
-            f"(steps=None runs to convergence) before trusting the intervals.",
+            f"calibration of {spec.name!r} on {test.name!r} has NOT converged: {advice(diagnostics)}"
+            f" ({note}). Do not trust the intervals yet.",
             ConvergenceWarning, stacklevel=2,
         )
+    elif res.stopped_by == "time_budget":
+        warnings.warn(budget.message(f"the chain of {n_steps} steps had already converged"),
+                      UserWarning, stacklevel=2)
     return cal

@@ -78,8 +78,15 @@ def elpd_loco(calibration) -> tuple[float, float, pd.DataFrame]:
     """
     cal = _as_calibration(calibration)
     ll = np.asarray(cal.idata.log_likelihood["force"].values, dtype=float)
+    return _loco_from_ll(ll, _labels(cal), cal.idata)
+
+
+def _labels(cal: Calibration) -> np.ndarray:
+    """Cycle labels of the samples the stored pointwise log-likelihood holds (all of the test's,
+    or a dense record's likelihood subsample, whose indices are the ``sample`` coordinate)."""
     labels = cycle_groups(cal.test.disp)
-    return _loco_from_ll(ll, labels, cal.idata)
+    samples = np.asarray(cal.idata.log_likelihood["force"].coords["sample"].values, dtype=np.int64)
+    return labels if samples.size == labels.size else labels[samples]
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,11 +195,10 @@ def compare(
                       "k_max": float(np.max(pk))})
     pareto = pd.DataFrame(krows).set_index("law")
     # leave-one-cycle-out
-    labels = cycle_groups(ref.disp)
     lc, per_cycle = {}, []
     for k, c in cals.items():
         ll = np.asarray(c.idata.log_likelihood["force"].values, dtype=float)
-        e, se, per = _loco_from_ll(ll, labels, c.idata)
+        e, se, per = _loco_from_ll(ll, _labels(c), c.idata)
         lc[k] = (e, se, per)
         per_cycle.append(per.assign(law=k))
     best_lc = max(lc, key=lambda k: lc[k][0])

@@ -13,6 +13,19 @@ sample, exactly as an OpenSees displacement-controlled analysis) and the residua
 The walkers of the ensemble are evaluated in parallel (``prange``), each along the whole history
 with preallocated work rows: no allocation per time step.  A law that fails (status < 0) or a
 non-positive sigma gives ``-inf``.
+
+Dense records (:data:`DENSE_POINTS`): the law is always driven along the *whole* measured history
+(its state depends on every sample), but above ``DENSE_POINTS`` samples the likelihood is
+evaluated at every ``stride``-th sample only, at most :data:`LIKELIHOOD_POINTS` of them
+(:func:`likelihood_points`), with the noise model (iid, or AR(1) between consecutive kept
+samples) applying to the kept residuals.  Why: the residuals of a densely sampled lab record
+are dominated by slowly varying model error, strongly correlated from one sample to the next;
+counting 33,000 such residuals as independent makes the posterior about 16x too narrow and
+ridge-shaped (the ensemble's autocorrelation time on the CLT record SPC1 rose to ~1,500 steps),
+while every ``stride``-th residual is close to independent, carries the same information about
+the loop's shape, and keeps the stored pointwise log-likelihood (LOO, files) small.  The
+subsample is a fixed, regular grid (deterministic; no seed needed) and is reported in the
+calibration's diagnostics.
 """
 
 from __future__ import annotations
@@ -27,7 +40,38 @@ from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, Prior
 from rrfrei.laws.kernel import run_history
 
-__all__ = ["Problem", "NOISE_MODELS"]
+__all__ = ["Problem", "NOISE_MODELS", "DENSE_POINTS", "LIKELIHOOD_POINTS", "likelihood_points"]
+
+DENSE_POINTS = 5000
+"""Records with more samples than this are "dense": the likelihood uses a regular subsample."""
+LIKELIHOOD_POINTS = 2000
+"""Most samples the likelihood of a dense record uses by default (``likelihood_points="auto"``)."""
+
+
+def likelihood_points(n: int, points: int | str | None = "auto") -> np.ndarray:
+    """Indices of the samples the likelihood uses, out of ``n`` recorded samples.
+
+    Parameters
+    ----------
+    n : number of samples of the test.
+    points : ``"auto"`` (or None): all samples when ``n <= DENSE_POINTS``, otherwise every
+        ``ceil(n / LIKELIHOOD_POINTS)``-th sample; ``"all"``: every sample; an integer N >= 2:
+        every ``ceil(n / N)``-th sample (all of them when N >= n).
+
+    Returns
+    -------
+    Sorted int64 indices, starting at 0, evenly spaced by ``stride``.
+    """
+    if points is None or (isinstance(points, str) and points.strip().lower() == "auto"):
+        target = n if n <= DENSE_POINTS else LIKELIHOOD_POINTS
+    elif isinstance(points, str) and points.strip().lower() == "all":
+        target = n
+    elif isinstance(points, (int, np.integer)) and not isinstance(points, bool) and points >= 2:
+        target = int(points)
+    else:
+        raise ValueError(f"likelihood_points = {points!r}: expected 'auto', 'all' or an integer >= 2")
+    stride = max(1, math.ceil(n / target))
+    return np.arange(0, n, stride, dtype=np.int64)
 
 NOISE_MODELS = ("iid", "ar1")
 _LOG2PI = math.log(2.0 * math.pi)
@@ -43,10 +87,14 @@ def forces_batch(code, P, state0, disp, time, use_time, F, T, status):
 
 
 @njit(parallel=True, cache=True)
-def loglik_batch(code, P, state0, disp, time, use_time, obs, sigma, rho, ar1, F, T, out):
-    """Joint log-likelihood of every row of ``P`` (with its sigma, rho) into ``out``."""
+def loglik_batch(code, P, state0, disp, time, use_time, obs, idx, sigma, rho, ar1, F, T, out):
+    """Joint log-likelihood of every row of ``P`` (with its sigma, rho) into ``out``.
+
+    The law runs along the whole ``disp``; the residuals are taken at the samples ``idx`` only
+    (``obs`` holds the measured forces at those samples).
+    """
     nw = P.shape[0]
-    n = disp.shape[0]
+    n = idx.shape[0]
     for w in prange(nw):
         s = sigma[w]
         if not s > 0.0:
@@ -63,19 +111,19 @@ def loglik_batch(code, P, state0, disp, time, use_time, obs, sigma, rho, ar1, F,
             if not abs(r) < 1.0:
                 out[w] = -np.inf
                 continue
-            e0 = obs[0] - F[w, 0]
+            e0 = obs[0] - F[w, idx[0]]
             var0 = s * s / (1.0 - r * r)
             acc = -0.5 * e0 * e0 / var0 - 0.5 * math.log(var0) - 0.5 * _LOG2PI
             prev = e0
             for i in range(1, n):
-                e = obs[i] - F[w, i]
+                e = obs[i] - F[w, idx[i]]
                 innov = e - r * prev
                 acc += -0.5 * innov * innov * inv
                 prev = e
             acc += (n - 1) * (-math.log(s) - 0.5 * _LOG2PI)
         else:
             for i in range(n):
-                e = obs[i] - F[w, i]
+                e = obs[i] - F[w, idx[i]]
                 acc += -0.5 * e * e * inv
             acc += n * (-math.log(s) - 0.5 * _LOG2PI)
         out[w] = acc if np.isfinite(acc) else -np.inf
@@ -99,7 +147,8 @@ def pointwise_from_residuals(resid: np.ndarray, sigma: np.ndarray, rho: np.ndarr
 class Problem:
     """A law, a test, the fixed values and the priors: everything the sampler needs.
 
-    ``theta`` rows are ``[free law parameters (spec order)..., sigma, (rho)]``.
+    ``theta`` rows are ``[free law parameters (spec order)..., sigma, (rho)]``.  ``lik_idx``: the
+    samples the likelihood uses (:func:`likelihood_points`; None: all of them).
     """
 
     spec: LawSpec
@@ -108,6 +157,7 @@ class Problem:
     fixed: dict[str, float]
     noise: str
     priors: dict[str, Prior]
+    lik_idx: np.ndarray | None = None
     template: np.ndarray = field(init=False)
     free_idx: np.ndarray = field(init=False)
 
@@ -125,6 +175,12 @@ class Problem:
         self.free_idx = np.array([names.index(n) for n in self.free], dtype=np.int64)
         self._disp = np.ascontiguousarray(self.test.disp)
         self._obs = np.ascontiguousarray(self.test.force)
+        n = self._disp.size
+        idx = np.arange(n, dtype=np.int64) if self.lik_idx is None else np.asarray(self.lik_idx, np.int64)
+        if idx.ndim != 1 or idx.size < 2 or idx.min() < 0 or idx.max() >= n or np.any(np.diff(idx) <= 0):
+            raise ValueError(f"lik_idx must be >= 2 increasing sample indices in [0, {n}), got {idx!r}")
+        self.lik_idx = np.ascontiguousarray(idx)
+        self._obs_l = np.ascontiguousarray(self._obs[idx])
         self._use_time = bool(self.test.has_time)
         self._time = np.ascontiguousarray(self.test.time if self._use_time else np.zeros_like(self._disp))
         self._state0 = np.array(self.spec.initial_state, dtype=float)
@@ -145,7 +201,26 @@ class Problem:
 
     @property
     def n_points(self) -> int:
+        """Samples of the test (the law is driven along all of them)."""
         return int(self._disp.size)
+
+    @property
+    def n_like(self) -> int:
+        """Samples the likelihood uses (``lik_idx``)."""
+        return int(self.lik_idx.size)
+
+    @property
+    def subsampled(self) -> bool:
+        return self.n_like < self.n_points
+
+    def residuals_at_points(self, F_points: np.ndarray) -> np.ndarray:
+        """Residuals for model forces already taken at the likelihood's samples (rows)."""
+        return self._obs_l[None, :] - np.atleast_2d(F_points)
+
+    def residuals(self, F: np.ndarray) -> np.ndarray:
+        """Residuals (measured - model) at the likelihood's samples, for full-history forces ``F``."""
+        F = np.atleast_2d(F)
+        return self._obs_l[None, :] - (F[:, self.lik_idx] if self.subsampled else F)
 
     def full_params(self, theta: np.ndarray) -> np.ndarray:
         """(nw, n_params) law parameter rows (free + fixed + defaults) for ``theta`` rows."""
@@ -186,8 +261,9 @@ class Problem:
         F = np.empty((nw, self.n_points))
         T = np.empty_like(F)
         out = np.empty(nw)
-        loglik_batch(self._code, P, self._state0, self._disp, self._time, self._use_time, self._obs,
-                     sigma, rho if rho is not None else np.zeros(nw), rho is not None, F, T, out)
+        loglik_batch(self._code, P, self._state0, self._disp, self._time, self._use_time, self._obs_l,
+                     self.lik_idx, sigma, rho if rho is not None else np.zeros(nw), rho is not None,
+                     F, T, out)
         self.n_evals += nw
         return out
 
@@ -220,7 +296,7 @@ class Problem:
 
     def profile_noise(self, F: np.ndarray) -> np.ndarray:
         """Maximum-likelihood noise parameters per row of forces ``F``: (nw, 1 or 2)."""
-        r = self._obs[None, :] - F
+        r = self.residuals(F)
         if self.noise == "iid":
             return np.sqrt(np.mean(r * r, axis=1))[:, None]
         num = np.sum(r[:, 1:] * r[:, :-1], axis=1)

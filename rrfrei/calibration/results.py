@@ -1,5 +1,10 @@
 """The :class:`Calibration` result: InferenceData, MAP, summary table, draws, netCDF round trip.
 
+For a dense record (likelihood on every ``stride``-th sample, :mod:`.likelihood`) the
+``log_likelihood`` and ``posterior_predictive`` groups hold those samples only (their
+``sample`` coordinate is the sample index in the test), in float32, for at most
+:data:`MAX_DRAWS_DENSE` draws; ``observed_data`` and ``constant_data`` keep the whole test.
+
 The ``posterior`` group holds the sampled quantities (free law parameters, ``sigma`` [kN] and,
 for AR(1) noise, ``rho``) with the walkers as chains.  Its attributes hold everything needed to
 rebuild the result from the netCDF file alone: the law name, the fixed (geometry and default)
@@ -28,6 +33,12 @@ MAX_DRAWS = 1000
 """Posterior draws kept (walkers x draws) after burn-in and thinning."""
 PREDICTIVE_DRAWS = 200
 """Draws (spread over the walkers) whose force histories are stored as posterior_predictive."""
+MAX_DRAWS_DENSE = 500
+"""Posterior draws kept for a dense record (likelihood on a subsample, see
+:mod:`.likelihood`): with <= 2,000 likelihood samples stored in float32, the pointwise
+log-likelihood then takes <= 4 MB and the whole netCDF file stays under 10 MB."""
+PREDICTIVE_DRAWS_DENSE = 100
+"""Posterior-predictive draws stored for a dense record (at the likelihood's samples, float32)."""
 
 
 def _az():
@@ -54,7 +65,10 @@ class Calibration:
     converged : chain >= 50 autocorrelation times, tau stable and R-hat < 1.05 for all.
     fixed : values held fixed (geometry, optional parameters at their defaults, user ``fixed=``).
     noise : "iid" or "ar1".
-    diagnostics : acceptance, tau, ESS, R-hat, steps, walkers, burn, thin, evaluations, seconds, note.
+    diagnostics : acceptance, tau, ESS, R-hat, steps, walkers, burn, thin, evaluations, seconds, note,
+        stopped_by, max_steps, time_budget [s], resumed_steps, points, likelihood_points,
+        likelihood_stride, stored_draws, max_draws.
+    stopped_by : (property) why sampling stopped: "converged", "steps", "max_steps", "time_budget".
     """
 
     law: str
@@ -68,6 +82,11 @@ class Calibration:
     fixed: dict[str, float] = field(default_factory=dict)
     noise: str = "iid"
     diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def stopped_by(self) -> str | None:
+        """Why sampling stopped: "converged", "steps", "max_steps" or "time_budget" (None: older file)."""
+        return self.diagnostics.get("stopped_by")
 
     # --- parameters -----------------------------------------------------------------------
     @property
@@ -283,20 +302,32 @@ def build_idata(problem, chain, logp, *, burn: int, thin: int, theta_map, fixed,
     posterior = {n: kept[:, :, j].T for j, n in enumerate(names)}  # (chain, draw)
     flat = kept.transpose(1, 0, 2).reshape(-1, ndim)  # chain-major, matches (chain, draw) order
     P = problem.full_params(flat)
-    F, status = problem.forces(P)
+    idx = problem.lik_idx
+    sub = bool(problem.subsampled)
+    F = np.empty((P.shape[0], idx.size))  # model forces at the likelihood's samples
+    status = np.zeros(P.shape[0], dtype=np.int64)
+    for b in range(0, P.shape[0], 128):  # batches: a dense record's full histories are large
+        Fb, sb = problem.forces(P[b: b + 128])
+        F[b: b + 128] = Fb[:, idx]
+        status[b: b + 128] = sb
     sigma, rho = problem.noise_params(flat)
     from rrfrei.calibration.likelihood import pointwise_from_residuals
 
-    resid = problem._obs[None, :] - F
+    resid = problem.residuals_at_points(F)
     ll = pointwise_from_residuals(resid, sigma, rho)
     ll[status != 0] = -np.inf
+    store = np.float32 if sub else np.float64
     test = problem.test
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # "more chains than draws": walkers are chains
-        idata = _from_dict(az, posterior, ll, nw, nd, lp, test, problem.n_points)
+        idata = _from_dict(az, posterior, None if sub else ll, nw, nd, lp, test, problem.n_points)
+    if sub:
+        idata.add_groups({"log_likelihood": xr.Dataset(
+            {"force": (("chain", "draw", "sample"), ll.reshape(nw, nd, -1).astype(store))},
+            coords={"chain": np.arange(nw), "draw": np.arange(nd), "sample": idx})})
 
     # posterior predictive on a thinned subset of draws (same chain/draw labels as the posterior)
-    per_chain = max(1, PREDICTIVE_DRAWS // nw)
+    per_chain = max(1, (PREDICTIVE_DRAWS_DENSE if sub else PREDICTIVE_DRAWS) // nw)
     didx = np.unique(np.linspace(0, nd - 1, min(per_chain, nd)).round().astype(int))
     Fm = F.reshape(nw, nd, -1)[:, didx, :]
     rng = np.random.default_rng(seed + 7)
@@ -304,9 +335,9 @@ def build_idata(problem, chain, logp, *, burn: int, thin: int, theta_map, fixed,
     rh = None if rho is None else rho.reshape(nw, nd)[:, didx]
     noise = simulate_noise(rng, sig, rh, Fm.shape[-1])
     pp = xr.Dataset(
-        {"force": (("chain", "draw", "sample"), Fm + noise),
-         "force_model": (("chain", "draw", "sample"), Fm)},
-        coords={"chain": np.arange(nw), "draw": didx, "sample": np.arange(problem.n_points)},
+        {"force": (("chain", "draw", "sample"), (Fm + noise).astype(store)),
+         "force_model": (("chain", "draw", "sample"), Fm.astype(store))},
+        coords={"chain": np.arange(nw), "draw": didx, "sample": idx},
     )
     idata.add_groups({"posterior_predictive": pp})
     a = idata.posterior.attrs
@@ -333,7 +364,7 @@ def build_idata(problem, chain, logp, *, burn: int, thin: int, theta_map, fixed,
 def _from_dict(az, posterior, ll, nw, nd, lp, test, n_points):
     return az.from_dict(
         posterior=posterior,
-        log_likelihood={"force": ll.reshape(nw, nd, -1)},
+        log_likelihood=None if ll is None else {"force": ll.reshape(nw, nd, -1)},
         observed_data={"force": np.asarray(test.force)},
         constant_data={"disp": np.asarray(test.disp), "time": np.asarray(test.time)},
         sample_stats={"lp": lp.T},
