@@ -111,6 +111,12 @@ def progress(total: int | None, desc: str, *, enabled: bool = True, unit: str = 
     """
     if not enabled:
         return _Silent()
+    import sys
+
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, desc=desc, unit=unit, leave=leave, dynamic_ncols=True, mininterval=0.5)
+    # on a terminal the bar redraws in place; in a log (not a TTY) every refresh is a new line,
+    # so refresh rarely there
+    tty = bool(getattr(sys.stderr, "isatty", lambda: False)())
+    return tqdm(total=total, desc=desc, unit=unit, leave=leave, dynamic_ncols=True,
+                mininterval=0.5 if tty else 10.0)

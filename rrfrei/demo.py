@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import importlib
 import math
+import sys
 import time
 import traceback
 import warnings
@@ -425,7 +426,8 @@ def step_gap(ctx: DemoContext, sec: Section) -> None:
     holdout = [tests[n] for n in TESTS[1:]]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        rep = diagnose_gap(tests["protocol1"], best, holdout=holdout, draws=s.gap_draws, seed=s.seed)
+        rep = diagnose_gap(tests["protocol1"], best, holdout=holdout, draws=s.gap_draws, seed=s.seed,
+                           progress=ctx.progress)
     ctx.results["gap"] = rep
     rows = []
     for e in rep.ranking:
@@ -605,7 +607,7 @@ def step_rubber(ctx: DemoContext, sec: Section) -> None:
     if not s.quick:  # the cross-prediction study: each protocol alone too
         jobs = {"protocol 1": ([p1], {}), "protocol 2": ([p2], {}), **jobs}
     fits = {}
-    for label in _tqdm(list(jobs), ctx.progress, desc="rubber fits", unit="fit"):
+    for label in _tqdm(list(jobs), ctx.progress, desc="rubber fits", unit="fit", leave=False):
         tests, extra = jobs[label]
         fits[label] = fit(tests, **kw, **extra)
     # every synthetic fit on every synthetic protocol (cross-prediction); the VHB fit on its data
@@ -791,7 +793,10 @@ def run_demo(
             "date": time.strftime("%Y-%m-%d %H:%M"),
         }
     )
-    ctx = DemoContext(settings=settings, progress=progress)
+    # inner bars (optimiser, sampler, gap, propagation, fits) only on a terminal: in a log every
+    # tqdm refresh is a new line, and the step bar below says enough
+    inner = progress and bool(getattr(sys.stderr, "isatty", lambda: False)())
+    ctx = DemoContext(settings=settings, progress=inner)
     t0 = time.perf_counter()
     bar = _tqdm(steps, progress, desc="rrfrei demo", unit="step")
     for step in bar:

@@ -651,7 +651,8 @@ def propagate(
         try:
             from tqdm.auto import tqdm
 
-            bar = tqdm(total=len(chunks), initial=len(chunks) - len(todo), desc="propagate", unit="chunk")
+            bar = tqdm(total=len(chunks), initial=len(chunks) - len(todo), desc="propagate", unit="chunk",
+                       leave=False)  # one line at a time, also when nested in the demo
         except ImportError:  # pragma: no cover - tqdm is a dependency
             bar = None
 

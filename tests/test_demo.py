@@ -1,7 +1,8 @@
 """`rrfrei demo --quick` in a temporary folder: the page and every table it claims.
 
-The quick run happens once (module fixture, in a subprocess as a user would run it); every test
-below reads its output.  A placeholder step (a workflow not wired in) fails these tests.
+The quick run happens once (module fixture, in a subprocess as a user would run it, its stderr
+going to a log as in CI, progress on); every test below reads its output.  A placeholder step
+(a workflow not wired in) fails these tests.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ def quick_demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "report"
     env = {**os.environ, "MPLBACKEND": "Agg"}
     proc = subprocess.run(
-        [sys.executable, "-m", "rrfrei.cli", "demo", "--quick", "--out", str(out), "--no-progress"],
+        [sys.executable, "-m", "rrfrei.cli", "demo", "--quick", "--out", str(out)],
         capture_output=True, text=True, timeout=900, env=env,
     )
     manifest = json.loads((out / "manifest.json").read_text()) if (out / "manifest.json").exists() else None
@@ -49,6 +50,17 @@ def test_quick_demo_runs_every_step_for_real_and_exits_zero(quick_demo):
     assert problems == {}, "steps not ok (error or placeholder)"
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert quick_demo["manifest"]["ok"] is True
+
+
+def test_progress_in_a_log_is_the_step_bar_not_a_flood_of_nested_bars(quick_demo):
+    """Off a terminal every tqdm refresh is a new line, so the demo keeps its own step bar there
+    and turns the inner bars (optimiser, sampler, gap, propagation, rubber fits) off."""
+    err = quick_demo["proc"].stderr
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert "rrfrei demo:" in err, "no progress shown"
+    inner = [ln for ln in lines if not ln.startswith("rrfrei demo:") and re.search(r"\d+/\d+ \[", ln)]
+    assert inner == [], f"{len(inner)} inner progress lines, e.g. {inner[:3]}"
+    assert len(lines) <= 40, f"{len(lines)} lines on stderr"
 
 
 def test_every_claimed_table_exists_and_holds_only_finite_numbers(quick_demo):
