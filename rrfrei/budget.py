@@ -120,3 +120,18 @@ def progress(total: int | None, desc: str, *, enabled: bool = True, unit: str = 
     tty = bool(getattr(sys.stderr, "isatty", lambda: False)())
     return tqdm(total=total, desc=desc, unit=unit, leave=leave, dynamic_ncols=True,
                 mininterval=0.5 if tty else 10.0)
+
+
+def seconds_arg(text: str) -> float | None:
+    """argparse type of every ``--time-budget``: seconds > 0, or ``none``/``off``/``inf`` for no limit."""
+    import argparse
+
+    if text.strip().lower() in ("none", "off", "inf", "infinite"):
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0 or math.isnan(value):
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0 or 'none', got {text!r}")
+    return None if math.isinf(value) else value

@@ -327,6 +327,6 @@ def test_cli_unreadable_test_file_is_a_user_error_exit_2(tmp_path, capsys):
 
 
 def test_cli_time_budget_none_means_no_limit():
-    from rrfrei.commands.gap import time_budget_arg
+    from rrfrei.budget import seconds_arg as time_budget_arg
 
     assert time_budget_arg("none") is None and time_budget_arg("90") == 90.0

@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from rrfrei.budget import seconds_arg
+
 EXAMPLE = """\
 Example:
   rrfrei calibrate protocol1.csv --law bouc_wen --holdout protocol2.csv protocol3.csv --out cal
@@ -24,20 +26,6 @@ DEFAULT_TIME_BUDGET = 300.0
 """Default wall-clock budget [s] of the optimum search and the sampling of the command."""
 CHECKPOINT_NAME = "chain.h5"
 """Default checkpoint file in the output folder."""
-
-
-def _time_budget(text: str) -> float | None:
-    """argparse type of ``--time-budget``: seconds > 0, or ``none`` for no limit."""
-    if text.strip().lower() in ("none", "inf", "off"):
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a number of seconds > 0 or 'none', got {text!r}") from None
-    if not value > 0 or value != value:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0 or 'none', got {text!r}")
-    return None if value == float("inf") else value
 
 
 def _fix(text: str) -> tuple[str, float]:
@@ -131,7 +119,7 @@ def register(sub) -> None:
                         "restarted if it belongs to another run; none: no checkpoint)")
     p.add_argument("--max-steps", type=_min_int(2), default=MAX_STEPS, metavar="N",
                    help=f"step cap of a run to convergence (default {MAX_STEPS})")
-    p.add_argument("--time-budget", type=_time_budget, default=DEFAULT_TIME_BUDGET, metavar="SECONDS|none",
+    p.add_argument("--time-budget", type=seconds_arg, default=DEFAULT_TIME_BUDGET, metavar="SECONDS|none",
                    help=f"wall-clock limit of the optimum search and sampling (default "
                         f"{DEFAULT_TIME_BUDGET:.0f}); when reached, the chain so far is kept and "
                         "written, and the same command continues it")

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from rrfrei.budget import seconds_arg
 from rrfrei.commands.calibrate import add_column_args, load
 
 EXAMPLE = """\
@@ -21,20 +22,6 @@ Exit status: 0 a report was written (possibly an incomplete diagnosis: see its f
 
 DEFAULT_BUDGET = 600.0
 """Default wall-clock budget of ``rrfrei gap`` [s]."""
-
-
-def time_budget_arg(text: str) -> float | None:
-    """``--time-budget`` value: seconds > 0, or ``none`` for no limit."""
-    if text.strip().lower() in ("none", "inf", "infinite"):
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not value > 0 or value != value:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0 or 'none', got {text!r}")
-    return value
-
 
 
 def register(sub) -> None:
@@ -54,7 +41,7 @@ def register(sub) -> None:
     p.add_argument("--out", default="gap-report", metavar="DIR", help="output folder")
     p.add_argument("--seed", type=int, default=0, help="seed of fits and draws (default 0)")
     p.add_argument("--json", action="store_true", help="print the JSON summary on stdout")
-    p.add_argument("--time-budget", type=time_budget_arg, default=DEFAULT_BUDGET, metavar="SECONDS|none",
+    p.add_argument("--time-budget", type=seconds_arg, default=DEFAULT_BUDGET, metavar="SECONDS|none",
                    help=f"wall-clock limit (default {DEFAULT_BUDGET:.0f} s): when reached, report the "
                         "effects evaluated so far and list the others as not evaluated; 'none': no limit")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
