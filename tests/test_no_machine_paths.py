@@ -1,7 +1,8 @@
 """Nothing tracked names a path of one machine: data is in the repository or at ``../shared``.
 
 A test that reads the shared data by an absolute path of one machine skips or checks nothing on
-another machine; a docstring that cites one points nowhere.  Every tracked Python, Markdown, TOML and CI file is scanned.
+another machine; a docstring that cites one points nowhere.  Every tracked Python, Markdown,
+TOML and CI file is scanned.
 """
 
 from __future__ import annotations
