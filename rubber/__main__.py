@@ -8,6 +8,11 @@ import json
 import sys
 from pathlib import Path
 
+from rrfrei.budget import seconds_arg
+
+DEFAULT_FIT_BUDGET = 1200.0
+"""Default wall-clock budget of ``python -m rubber fit`` [s] (a 12-test fit takes 85-99 s)."""
+
 EXAMPLES = {
     "fit": "example: python -m rubber fit p1.csv p2.csv --out fitdir --bounds auto --json",
     "predict": "example: python -m rubber predict --params fitdir/params.json p1.csv --json",
@@ -35,6 +40,10 @@ def _parser() -> argparse.ArgumentParser:
     f.add_argument("--restarts", type=int, default=2)
     f.add_argument("--max-evals", type=int, default=6000)
     f.add_argument("--json", action="store_true")
+    f.add_argument("--time-budget", type=seconds_arg, default=DEFAULT_FIT_BUDGET, metavar="SECONDS|none",
+                   help=f"wall-clock limit of the search [s] (default {DEFAULT_FIT_BUDGET:.0f}; 'none': no "
+                        "limit); when reached, the best fit so far is written, with a warning")
+    f.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     q = sub.add_parser("predict", help="error f of a parameter set on tests", epilog=EXAMPLES["predict"])
     q.add_argument("--params", required=True)
     q.add_argument("tests", nargs="+")
@@ -105,7 +114,12 @@ def _run(a) -> int:
         bounds = _read_bounds(a.bounds)
         out = Path(a.out)
         out.mkdir(parents=True, exist_ok=True)
-        r = fit(tests, bounds=bounds, seed=a.seed, restarts=a.restarts, max_evals=a.max_evals)
+        r = fit(tests, bounds=bounds, seed=a.seed, restarts=a.restarts, max_evals=a.max_evals,
+                time_budget=a.time_budget, progress=not a.no_progress)
+        if r.stopped_by == "time_budget":
+            print(f"warning: time budget of {a.time_budget:.0f} s reached after {r.evaluations} evaluations: "
+                  "the best fit so far is written; raise it with --time-budget (none: no limit)",
+                  file=sys.stderr)
         # the fit is written before anything that could still fail (the figure); the uncertainty step
         # inside fit() never raises: its failures are NaN rel_sigma with reasons in "uncertainty_notes"
         doc = {"params": r.params.as_dict(), "f": r.f, "f_total": r.f_total}
@@ -113,7 +127,8 @@ def _run(a) -> int:
         (out / "params.json").write_text(json.dumps({
             **doc, "combinations": r.combinations, "ref_rate": r.ref_rate,
             "flow_parameterisation": list(r.flow_thresholds) or "C1", "rel_sigma": rel,
-            "uncertainty_notes": list(r.uncertainty_notes), "evaluations": r.evaluations}, indent=2))
+            "uncertainty_notes": list(r.uncertainty_notes), "evaluations": r.evaluations,
+            "stopped_by": r.stopped_by}, indent=2))
         for note in r.uncertainty_notes:
             print(f"warning: {note}", file=sys.stderr)
         if r.f_total > len(tests):  # each test's f > 1 on average: worse than predicting zero stress

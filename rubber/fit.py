@@ -188,6 +188,9 @@ class FitResult:
     ref_rate: float = REF_RATE
     flow_thresholds: tuple[str, ...] = ()
     uncertainty_notes: tuple[str, ...] = ()
+    stopped_by: str | None = None
+    """``"time_budget"`` when the wall-clock budget ended the search early (the best point found
+    so far is returned and polished as far as the budget allowed); None for a complete fit."""
 
     def summary(self) -> str:
         lines = [f"f_total = {self.f_total:.4e} ({self.evaluations} evaluations)"]
@@ -299,8 +302,12 @@ def _resolve_bounds(bounds, tests) -> dict:
     return b
 
 
-def _run_cma(args):
-    space, tests, x0, sigma0, popsize, max_evals, seed, tau, rtol = args
+def _run_cma(args, bar=None):
+    """One CMA-ES run; stops early (keeping its best point) once the wall clock passes ``deadline``
+    (seconds since the epoch, so that it also holds in a worker process; None: no deadline)."""
+    space, tests, x0, sigma0, popsize, max_evals, seed, tau, rtol, deadline = args
+    import time
+
     import cma
 
     opts = {"bounds": [0.0, 1.0], "popsize": popsize, "maxfevals": max_evals, "seed": seed,
@@ -317,6 +324,10 @@ def _run_cma(args):
     while not es.stop():
         xs = es.ask()
         es.tell(xs, [f(x) for x in xs])
+        if bar is not None:
+            bar.update(len(xs))
+        if deadline is not None and time.time() >= deadline:
+            break
     return np.array(es.result.xbest), float(es.result.fbest), int(es.result.evaluations)
 
 
@@ -443,7 +454,7 @@ def fisher_information(params: PRFParams, tests: list[Test], free: tuple[str, ..
 def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, seed: int = 0,
         restarts: int = 2, max_evals: int = 6000, popsize: int = 16, sigma0: float = 0.3,
         x0: PRFParams | None = None, polish: bool = True, tau: str = "frobenius", rtol: float = 1e-6,
-        pool=None) -> FitResult:
+        pool=None, time_budget: float | None = None, progress: bool = False) -> FitResult:
     """Fit a :class:`PRFParams` to uniaxial tests by CMA-ES with restarts and a least-squares polish.
 
     Parameters
@@ -458,6 +469,10 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
     restarts : number of independent CMA-ES runs (random starts; the first starts at ``x0`` if given).
     max_evals : evaluation budget per run.  pool : anything with ``.map`` to run restarts in parallel.
     tau : flow-stress convention; rtol : integrator tolerance during the search.
+    time_budget : wall-clock limit [s] of the search and the polish (None: none).  When it is
+        reached, the best point so far is kept, the post-fit uncertainty step still runs, and the
+        result says ``stopped_by="time_budget"``.
+    progress : tqdm bar over the CMA-ES evaluations (serial restarts) and the polish, on stderr.
 
     Returns
     -------
@@ -486,21 +501,50 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
     starts = [rng.uniform(0.2, 0.8, len(free)) for _ in range(int(restarts))]
     if x0 is not None:
         starts[0] = space.x_of(x0)
-    jobs = [(space, tests, s, sigma0, popsize, max_evals, int(seed) * 1000 + i + 1, tau, rtol)
+    import time
+
+    from rrfrei.budget import TimeBudget
+    from rrfrei.budget import progress as _progress
+
+    budget = TimeBudget(time_budget, "rubber fit", "--time-budget")
+    deadline = None if budget.seconds is None else time.time() + budget.seconds
+    jobs = [(space, tests, s, sigma0, popsize, max_evals, int(seed) * 1000 + i + 1, tau, rtol, deadline)
             for i, s in enumerate(starts)]
-    runs = list((pool.map if pool is not None else map)(_run_cma, jobs))
+    if pool is not None:
+        runs = list(pool.map(_run_cma, jobs))
+    else:
+        with _progress(len(jobs) * int(max_evals), "CMA-ES", enabled=progress, unit="eval") as bar:
+            runs = [_run_cma(j, bar) for j in jobs]
     nev = sum(r[2] for r in runs)
     xb, fb, _ = min(runs, key=lambda r: r[1])
-    if polish:
+    if polish and not budget.expired():
         from scipy.optimize import least_squares
 
         r0 = _residuals(space, tests, xb, tau, rtol)
-        sol = least_squares(lambda x: _residuals(space, tests, x, tau, rtol), xb, bounds=(0.0, 1.0),
-                            x_scale=1.0, diff_step=1e-6, max_nfev=60 * (1 + len(free)), xtol=1e-14,
-                            ftol=1e-14, gtol=1e-14)
-        nev += int(sol.nfev) * (1 + len(free))
-        if np.sum(sol.fun**2) < np.sum(r0**2):
-            xb = sol.x
+        best = {"c": float(np.sum(r0**2)), "x": xb, "n": 0}
+
+        class _Out(Exception):
+            pass
+
+        def resid(x):
+            if budget.expired():
+                raise _Out
+            best["n"] += 1
+            r = _residuals(space, tests, x, tau, rtol)
+            c = float(np.sum(r**2))
+            if c < best["c"]:
+                best["c"], best["x"] = c, np.array(x, dtype=float)
+            return r
+
+        with _progress(None, "polish (least squares)", enabled=progress, unit="eval"):
+            try:
+                least_squares(resid, xb, bounds=(0.0, 1.0), x_scale=1.0, diff_step=1e-6,
+                              max_nfev=60 * (1 + len(free)), xtol=1e-14, ftol=1e-14, gtol=1e-14)
+            except _Out:
+                pass
+        nev += best["n"]
+        xb = best["x"]
+    stopped = "time_budget" if budget.expired() else None
     p = space.params(xb)
     fs = objective(p, tests, tau=tau, rtol=min(rtol, 1e-8))
     fd = {t.name: float(v) for t, v in zip(tests, fs)}
@@ -508,7 +552,7 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
     return FitResult(p, fd, float(np.sum(fs)), nev, free, fim, corr, rs,
                      combinations(p, rate=space.ref_rate, tau=tau), [(float(r[1]), int(r[2])) for r in runs],
                      ref_rate=space.ref_rate, flow_thresholds=tuple("Dth_" + c for c in space.threshold),
-                     uncertainty_notes=notes)
+                     uncertainty_notes=notes, stopped_by=stopped)
 
 
 def _safe_fisher(p: PRFParams, tests: list[Test], free: tuple[str, ...], tau: str, bounds: dict):

@@ -377,7 +377,7 @@ class RubberModel(GapModel):
         if self.start is not None:
             x0s[0] = _x_of(space, self.start)
         runs = [_run_cma((space, tests, x0, 0.3, 16, self.max_evals, int(seed) * 1000 + i + 1, "frobenius",
-                          self.rtol)) for i, x0 in enumerate(x0s)]
+                          self.rtol, None)) for i, x0 in enumerate(x0s)]
         return [min(runs, key=lambda r: r[1])[0]]
 
     def _lsq(self, space: _Space, eff, tests: list[Test], z0: np.ndarray) -> tuple[np.ndarray, float]:

@@ -208,6 +208,32 @@ def test_cli_fit_writes_its_outputs_when_the_uncertainty_step_fails(tmp_path, mo
     assert "uncertainty step failed" in capsys.readouterr().err
 
 
+# --- a time budget ends the search with the best fit so far ------------------------------------
+def test_a_time_budget_ends_the_search_early_and_keeps_the_best_fit_so_far(acrylic):
+    r = fit(acrylic[:2], bounds="auto", restarts=2, max_evals=5000, time_budget=1.0)
+    assert r.stopped_by == "time_budget"
+    assert r.evaluations < 2 * 5000 and math.isfinite(r.f_total) and r.f_total < 2.0
+    done = fit(acrylic[:1], bounds="auto", restarts=1, max_evals=32, polish=False)
+    assert done.stopped_by is None
+
+
+def test_cli_fit_time_budget_writes_the_best_fit_and_warns(tmp_path, acrylic, capsys):
+    write_kpa_csv(tmp_path / "a.csv", acrylic[0])
+    code = main(["fit", str(tmp_path / "a.csv"), "--out", str(tmp_path / "out"), "--bounds", "auto",
+                 "--max-evals", "20000", "--time-budget", "1", "--no-progress"])
+    assert code == 0
+    doc = json.loads((tmp_path / "out" / "params.json").read_text())
+    assert doc["stopped_by"] == "time_budget" and math.isfinite(doc["f_total"])
+    assert "time budget of 1 s reached" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", ["0", "-5", "soon"])
+def test_cli_fit_rejects_a_bad_time_budget_naming_the_option(tmp_path, value, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["fit", str(tmp_path / "a.csv"), "--out", str(tmp_path / "o"), "--time-budget", value])
+    assert e.value.code == 2 and "--time-budget" in capsys.readouterr().err
+
+
 # --- the 12-test multi-rate fit (slow tier) -----------------------------------------------------
 @pytest.mark.slow
 def test_twelve_test_multirate_fit_recovers_the_identifiable_combinations(tmp_path, acrylic):
