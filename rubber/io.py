@@ -81,7 +81,8 @@ def _read_csv(path: Path) -> Test:
                 np.array(out[scol[0]]) * _SCALE[scol[0]])
 
 
-def _read_mat(path: Path) -> Test:
+def _mat_arrays(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(data.xdata, data.ydata) of a MATLAB file; ValueError on anything else."""
     from scipy.io import loadmat
 
     try:
@@ -91,6 +92,53 @@ def _read_mat(path: Path) -> Test:
     except Exception as exc:
         raise ValueError(f"{path}: expected a MATLAB struct 'data' with xdata [time, stretch] and "
                          f"ydata [stress kPa] ({exc})") from None
+    return x, y
+
+
+def _mat_arrays_isolated(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_mat_arrays` in a forked child process.
+
+    ``scipy.io.loadmat`` can crash the interpreter (segmentation fault in its compiled MAT5
+    reader) on some corrupted files; found by fuzzing (tests/test_reader_fuzz.py).  A crash in
+    the child becomes a ValueError naming the file.  Without ``os.fork`` (Windows) the file is
+    read in this process.
+    """
+    import os
+    import pickle
+
+    if not hasattr(os, "fork"):
+        return _mat_arrays(path)
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # child: read, send the result or the error, leave without cleanup handlers
+        code = 0
+        try:
+            os.close(r)
+            try:
+                out = ("ok", _mat_arrays(path))
+            except ValueError as exc:
+                out = ("error", str(exc))
+            with os.fdopen(w, "wb") as f:
+                f.write(pickle.dumps(out))
+        except BaseException:  # noqa: BLE001 - nothing may escape a forked child
+            code = 1
+        finally:
+            os._exit(code)
+    os.close(w)
+    with os.fdopen(r, "rb") as f:
+        data = f.read()
+    _, status = os.waitpid(pid, 0)
+    if not data:
+        how = f"signal {os.WTERMSIG(status)}" if os.WIFSIGNALED(status) else f"exit {os.WEXITSTATUS(status)}"
+        raise ValueError(f"{path}: not a readable MATLAB file (the MAT-file reader crashed: {how})")
+    kind, value = pickle.loads(data)
+    if kind == "error":
+        raise ValueError(value)
+    return value
+
+
+def _read_mat(path: Path) -> Test:
+    x, y = _mat_arrays_isolated(path)
     if x.ndim != 2 or x.shape[1] != 2 or x.shape[0] != y.size:
         raise ValueError(f"{path}: data.xdata shape {x.shape} and data.ydata size {y.size} do not match")
     for key, a in (("xdata", x), ("ydata", y)):

@@ -587,3 +587,24 @@ def test_the_property_refuses_errors_that_do_not_name_the_file_or_are_not_value_
                         tmp_path)
     with pytest.raises(KeyError):
         read_or_explain(raising(KeyError("t.csv")), tmp_path)
+
+
+def test_a_mat_file_that_crashes_the_matlab_reader_is_a_value_error_naming_the_file(tmp_path, monkeypatch):
+    """scipy.io.loadmat segfaulted on a fuzzed .mat file (slow tier): rubber reads MAT files in a
+    forked child, so a crash there is a ValueError naming the file, not the end of the process."""
+    import os
+    import signal
+
+    import rubber.io as rio
+
+    path = tmp_path / "crash.mat"
+    bundled = Path(__file__).resolve().parents[1] / "rubber" / "data" / "vhb4910_data.mat"
+    path.write_bytes(bundled.read_bytes())
+
+    def segfault(p):
+        os.kill(os.getpid(), signal.SIGSEGV)
+
+    monkeypatch.setattr(rio, "_mat_arrays", segfault)
+    with pytest.raises(ValueError, match=r"crash\.mat: not a readable MATLAB file \(the MAT-file reader "
+                                         r"crashed: signal 11\)"):
+        rio.read_test(path)
