@@ -113,6 +113,9 @@ def _mat_arrays_isolated(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if pid == 0:  # child: read, send the result or the error, leave without cleanup handlers
         code = 0
         try:
+            import faulthandler
+
+            faulthandler.disable()  # a crash here is reported by the parent, not dumped to stderr
             os.close(r)
             try:
                 out = ("ok", _mat_arrays(path))
