@@ -38,14 +38,13 @@ import emcee
 import numpy as np
 
 from rrfrei.budget import BudgetExceeded, TimeBudget
+from rrfrei.budget import progress as progress_bar
 from rrfrei.calibration.likelihood import Problem, pointwise_from_residuals
 from rrfrei.calibration.priors import cube_range
 
-__all__ = ["find_map", "run_chain", "ChainResult", "CHUNK", "MAX_STEPS"]
+__all__ = ["find_map", "run_chain", "ChainResult", "CHECK", "MAX_STEPS"]
 
-CHUNK = 250
 MAX_STEPS = 20_000
-TAU_FACTOR = 50.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -125,7 +124,7 @@ def find_map(problem: Problem, seed: int = 0, *, max_evals: int | None = None,
         return theta[0], float(lp[0])
     n0 = max(64, 32 * k)
     max_evals = max_evals or 600 * k + 2000
-    bar = _bar(n0 + max_evals, "optimum (CMA-ES)", progress, "eval")
+    bar = progress_bar(n0 + max_evals, "optimum (CMA-ES)", enabled=progress, unit="eval")
     try:
         Z0 = rng.uniform(0.0, 1.0, (n0, k))
         Z0[0] = 0.5
@@ -160,12 +159,6 @@ def find_map(problem: Problem, seed: int = 0, *, max_evals: int | None = None,
                    progress=progress)
 
 
-def _bar(total: int | None, desc: str, enabled: bool, unit: str):
-    from rrfrei.budget import progress as _progress
-
-    return _progress(total, desc, enabled=enabled, unit=unit)
-
-
 def _polish(problem: Problem, cube: _Cube, theta: np.ndarray, lp: float, *,
             budget: TimeBudget | None = None, progress: bool = False) -> tuple[np.ndarray, float]:
     """Bounded least-squares (trust-region reflective) polish of the CMA-ES optimum.
@@ -184,7 +177,7 @@ def _polish(problem: Problem, cube: _Cube, theta: np.ndarray, lp: float, *,
     scale = float(np.std(obs)) or 1.0
     pad = np.ones((1, problem.ndim - k))
 
-    bar = _bar(100 * k, "polish (least squares)", progress, "eval")
+    bar = progress_bar(100 * k, "polish (least squares)", enabled=progress, unit="eval")
 
     def resid(z: np.ndarray) -> np.ndarray:
         if budget is not None:
@@ -321,6 +314,16 @@ def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generato
     )
 
 
+def _autocov(x: np.ndarray) -> np.ndarray:
+    """Sum_t (x_t - mean)(x_{t+lag} - mean) for lags 0..n-1 of chains ``x`` (draws, chains, k), by
+    one zero-padded FFT along the draws (unnormalised: divide by n for the biased autocovariance)."""
+    n = x.shape[0]
+    xc = x - x.mean(axis=0)
+    nfft = 1 << int(math.ceil(math.log2(2 * n)))
+    f = np.fft.rfft(xc, n=nfft, axis=0)
+    return np.fft.irfft(f * np.conj(f), n=nfft, axis=0)[:n]
+
+
 def _tau(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
     """Integrated autocorrelation time per parameter of a chain (steps, walkers, k).
 
@@ -331,10 +334,7 @@ def _tau(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
     n, m, k = chain.shape
     if n < 4:
         return np.full(k, np.nan)
-    xc = chain - chain.mean(axis=0)
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    f = np.fft.rfft(xc, n=nfft, axis=0)
-    acf = np.fft.irfft(f * np.conj(f), n=nfft, axis=0)[:n]  # (n, m, k)
+    acf = _autocov(chain)  # (n, m, k)
     with np.errstate(divide="ignore", invalid="ignore"):
         acf = np.nanmean(acf / acf[0], axis=1)  # (n, k); a stuck walker (zero variance) is skipped
     taus = 2.0 * np.cumsum(acf, axis=0) - 1.0
@@ -371,11 +371,6 @@ def burn_in(n_steps: int, tau_max: float) -> int:
     if not math.isfinite(tau_max):
         return n_steps // 2
     return min(n_steps // 2, max(n_steps // 4, int(math.ceil(2 * tau_max))))
-
-
-def _rhat_max(chain: np.ndarray) -> float:
-    """Largest rank-normalised split R-hat over parameters of an emcee chain (steps, walkers, k)."""
-    return _diagnose(chain)[2]
 
 
 def _diagnose(kept: np.ndarray) -> tuple[float, float, float]:
@@ -419,10 +414,7 @@ def _ess(x: np.ndarray) -> np.ndarray:
     """Effective sample size of chains ``x`` (draws, chains, k), Geyer's initial monotone
     sequence on the multi-chain autocorrelation (Stan's and arviz' estimator)."""
     n, m, k = x.shape
-    xc = x - x.mean(axis=0)
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    f = np.fft.rfft(xc, n=nfft, axis=0)
-    acov = np.fft.irfft(f * np.conj(f), n=nfft, axis=0)[:n] / n  # (n, m, k), biased
+    acov = _autocov(x) / n  # (n, m, k), biased
     chain_var = acov[0] * n / (n - 1)
     mean_var = chain_var.mean(axis=0)
     var_plus = mean_var * (n - 1) / n + (np.var(x.mean(axis=0), axis=0, ddof=1) if m > 1 else 0.0)
@@ -595,7 +587,7 @@ def run_chain(
     if steps is not None and resumed > steps:
         note = f"the checkpoint holds {resumed} steps, more than the {steps} asked; all are used"
     stopped_by = "steps" if steps is not None else "max_steps"
-    bar = _bar(max(target - resumed, 0), "MCMC", progress, "step")
+    bar = progress_bar(max(target - resumed, 0), "MCMC", enabled=progress, unit="step")
     chk = None
     previous = math.inf
     try:
