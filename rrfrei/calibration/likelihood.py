@@ -213,14 +213,24 @@ class Problem:
     def subsampled(self) -> bool:
         return self.n_like < self.n_points
 
+    @property
+    def observed(self) -> np.ndarray:
+        """Measured forces [kN] at the likelihood's samples."""
+        return self._obs_l
+
+    def at_points(self, F: np.ndarray) -> np.ndarray:
+        """Rows of full-history model forces ``F`` taken at the likelihood's samples (``F`` itself
+        when the likelihood uses every sample)."""
+        F = np.atleast_2d(F)
+        return F[:, self.lik_idx] if self.subsampled else F
+
     def residuals_at_points(self, F_points: np.ndarray) -> np.ndarray:
         """Residuals for model forces already taken at the likelihood's samples (rows)."""
         return self._obs_l[None, :] - np.atleast_2d(F_points)
 
     def residuals(self, F: np.ndarray) -> np.ndarray:
         """Residuals (measured - model) at the likelihood's samples, for full-history forces ``F``."""
-        F = np.atleast_2d(F)
-        return self._obs_l[None, :] - (F[:, self.lik_idx] if self.subsampled else F)
+        return self._obs_l[None, :] - self.at_points(F)
 
     def full_params(self, theta: np.ndarray) -> np.ndarray:
         """(nw, n_params) law parameter rows (free + fixed + defaults) for ``theta`` rows."""

@@ -308,7 +308,7 @@ def build_idata(problem, chain, logp, *, burn: int, thin: int, theta_map, fixed,
     status = np.zeros(P.shape[0], dtype=np.int64)
     for b in range(0, P.shape[0], 128):  # batches: a dense record's full histories are large
         Fb, sb = problem.forces(P[b: b + 128])
-        F[b: b + 128] = Fb[:, idx]
+        F[b: b + 128] = problem.at_points(Fb)
         status[b: b + 128] = sb
     sigma, rho = problem.noise_params(flat)
     from rrfrei.calibration.likelihood import pointwise_from_residuals

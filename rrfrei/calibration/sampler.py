@@ -172,8 +172,7 @@ def _polish(problem: Problem, cube: _Cube, theta: np.ndarray, lp: float, *,
     from scipy.optimize import least_squares
 
     k = len(problem.free)
-    obs = problem._obs_l
-    idx = problem.lik_idx
+    obs = problem.observed
     scale = float(np.std(obs)) or 1.0
     pad = np.ones((1, problem.ndim - k))
 
@@ -188,7 +187,7 @@ def _polish(problem: Problem, cube: _Cube, theta: np.ndarray, lp: float, *,
         bar.update(1)
         if status[0] != 0 or not np.all(np.isfinite(F[0])):
             return np.full(obs.size, 1e3)
-        return ((F[0, idx] if problem.subsampled else F[0]) - obs) / scale
+        return (problem.at_points(F)[0] - obs) / scale
 
     z0 = cube.to_z(theta[:k])[0]
     try:
@@ -251,8 +250,7 @@ def laplace_cov(problem: Problem, theta0: np.ndarray) -> np.ndarray | None:
     F, status = problem.forces(problem.full_params(np.column_stack([cube.to_x(Z), pad])))
     if np.any(status != 0) or not np.all(np.isfinite(F)):
         return None
-    if problem.subsampled:
-        F = F[:, problem.lik_idx]
+    F = problem.at_points(F)
     J = ((F[1:] - F[0]) / h[:, None]).T  # (likelihood points, k)
     sigma, rho = problem.noise_params(theta0[None, :])
     s = float(sigma[0])
