@@ -21,6 +21,8 @@ import math
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
+
 __all__ = ["TimeBudget", "BudgetExceeded", "progress"]
 
 
@@ -43,6 +45,18 @@ class TimeBudget:
     what: str = "this run"
     option: str = "time_budget"
     start: float = field(default_factory=time.perf_counter)
+
+    @classmethod
+    def of(cls, value: TimeBudget | float | None, what: str, option: str = "time_budget") -> TimeBudget:
+        """``value`` if it is already a running budget, else a new one of ``value`` seconds.
+
+        ValueError naming ``option`` for anything but a number of seconds > 0, None or a budget.
+        """
+        if isinstance(value, TimeBudget):
+            return value
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, np.number))):
+            raise ValueError(f"{option} = {value!r}: expected a number of seconds > 0 or None")
+        return cls(value, what=what, option=option)
 
     def __post_init__(self) -> None:
         if self.seconds is not None:

@@ -192,13 +192,7 @@ def calibrate(
     import time
 
     t0 = time.perf_counter()
-    if isinstance(time_budget, TimeBudget):
-        budget = time_budget
-    else:
-        if time_budget is not None and (isinstance(time_budget, bool)
-                                        or not isinstance(time_budget, (int, float, np.number))):
-            raise ValueError(f"time_budget = {time_budget!r}: expected a number of seconds > 0 or None")
-        budget = TimeBudget(time_budget, what="calibrate", option="time_budget")
+    budget = TimeBudget.of(time_budget, "calibrate")
     if isinstance(test, (str, Path)):
         test = read_test(test)
     if not isinstance(test, ShearTest):

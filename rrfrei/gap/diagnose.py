@@ -357,15 +357,6 @@ def _fit_or_restore(ck: _Checkpoint, step: str, model: GapModel, data, budget: T
     return fit
 
 
-def _as_budget(time_budget) -> TimeBudget:
-    if isinstance(time_budget, TimeBudget):
-        return time_budget
-    if time_budget is not None and (isinstance(time_budget, bool)
-                                    or not isinstance(time_budget, (int, float))):
-        raise ValueError(f"time_budget = {time_budget!r}: expected a number of seconds > 0 or None")
-    return TimeBudget(time_budget, what="gap diagnosis", option="time_budget")
-
-
 def _failure(step: str, exc: BaseException) -> str:
     return f"{step}: {type(exc).__name__}: {exc}"
 
@@ -409,7 +400,7 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
     for e in effects:
         if e not in CATALOGUE:
             raise ValueError(f"unknown effect {e!r}; available: {', '.join(CATALOGUE)}")
-    budget = _as_budget(time_budget)
+    budget = TimeBudget.of(time_budget, "gap diagnosis")
     ck = _Checkpoint(checkpoint, model, data, seed)
     name = getattr(data, "name", "data")
     notes: list[str] = []
@@ -507,13 +498,13 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
         combination: list[str] = [] if diagnosis == "none" else [diagnosis]
         steps: list[EffectScore] = []
         final = bm
+        stopped = False  # the budget cut the combination search short
         if combination:
             first = next(s for s in ranking if s.effect == diagnosis)
             steps.append(first)
             final = (first.calibration, first.holdout)
             current = fits[first.law]
             pool = [s.effect for s in sig[1:]]
-            stopped = False
             while combine and pool and len(combination) < max_combination and not stopped:
                 cand = []
                 bar.total = (getattr(bar, "total", 0) or 0) + len(pool)
@@ -548,8 +539,6 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
                 final = (best.calibration, best.holdout)
                 current = fit
                 pool.remove(best.effect)
-        else:
-            stopped = False
     missing = {**skipped, **untried}
     if missing:
         listed = "; ".join(f"{e}: {why}" for e, why in missing.items())
@@ -630,7 +619,7 @@ def diagnose_gap(test, law: str = "bouc_wen", *, holdout: Sequence = (), effects
     spec = get(law)
     if spec.effects:
         raise ValueError(f"law must be a base law, got the augmented law {spec.name!r}")
-    budget = _as_budget(time_budget)  # starts before the tests are read
+    budget = TimeBudget.of(time_budget, "gap diagnosis")  # starts before the tests are read
     cal = _as_test(test, "test")
     hos = [_as_test(h, "holdout") for h in holdout]
     return diagnose(IsolatorModel(spec, fixed=fixed, draws=draws), cal, hos, effects=effects, seed=seed,
