@@ -55,9 +55,9 @@ __all__ = ["GapModel", "FitResult", "Prediction", "IsolatorModel", "IsolatorFit"
 
 LEVEL = 0.95
 GLOBAL_EVALS = 300
+"""CMA-ES evaluations per free parameter of the baseline's global search (then least squares)."""
 CHECKPOINT_FORMAT = 1
 """Version of the checkpoint files (part of their key: a change invalidates old ones)."""
-"""CMA-ES evaluations per free parameter of the baseline's global search (then least squares)."""
 
 
 @dataclass(frozen=True)
