@@ -50,6 +50,7 @@ __all__ = [
     "Calibration",
     "ConvergenceWarning",
     "advice",
+    "run_stats",
     "calibrate",
     "compare",
     "elpd_loco",
@@ -97,6 +98,14 @@ def _fingerprint(problem: Problem, nw: int, seed: int) -> str:
     return h.hexdigest()[:16]
 
 
+def run_stats(diagnostics: Mapping) -> str:
+    """``tau ≈ 62 steps, R-hat 1.012, ESS 455`` from a calibration's diagnostics."""
+    d = diagnostics
+    taus = [v for v in dict(d.get("tau", {})).values() if v == v]
+    tau = f"tau ≈ {max(taus):.0f} steps" if taus else "tau not estimable"
+    return f"{tau}, R-hat {d.get('rhat_max', float('nan')):.3f}, ESS {d.get('ess_min', float('nan')):.0f}"
+
+
 def advice(diagnostics: Mapping, *, cli: bool = False) -> str:
     """One sentence: why the chain stopped unconverged and what to do, matching what happened.
 
@@ -104,9 +113,7 @@ def advice(diagnostics: Mapping, *, cli: bool = False) -> str:
     """
     d = diagnostics
     opt = (lambda api, flag: flag) if cli else (lambda api, flag: api)
-    taus = [v for v in dict(d.get("tau", {})).values() if v == v]
-    tau = f"tau ≈ {max(taus):.0f} steps" if taus else "tau not estimable"
-    stats = f"{tau}, R-hat {d.get('rhat_max', float('nan')):.3f}, ESS {d.get('ess_min', float('nan')):.0f}"
+    stats = run_stats(d)
     why = d.get("stopped_by")
     steps = int(d.get("steps", 0))
     if why == "time_budget":

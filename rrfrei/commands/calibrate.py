@@ -187,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
 
     from rrfrei.budget import BudgetExceeded, TimeBudget
-    from rrfrei.calibration import ConvergenceWarning, advice, calibrate, plots, predict
+    from rrfrei.calibration import ConvergenceWarning, advice, calibrate, plots, predict, run_stats
     from rrfrei.laws import get
 
     get(args.law)  # unknown law -> user error before reading anything heavy
@@ -225,7 +225,7 @@ def run(args: argparse.Namespace) -> int:
         state = "converged" if cal.converged else "NOT converged"
         print(f"rrfrei calibrate: warning: time budget of {budget.seconds:.0f} s reached after "
               f"{d['seconds']:.0f} s: kept {d['steps']} steps x {d['walkers']} walkers ({state}; "
-              f"{advice_stats(d)}); run {where} again to continue, or raise --time-budget "
+              f"{run_stats(d)}); run {where} again to continue, or raise --time-budget "
               "(none: no limit)", file=sys.stderr)
     elif not cal.converged:
         print(f"rrfrei calibrate: warning: NOT converged: {advice(d, cli=True)}", file=sys.stderr)
@@ -292,15 +292,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def advice_stats(d: dict) -> str:
-    """``tau ≈ 62 steps, R-hat 1.012, ESS 455`` from a calibration's diagnostics."""
-    taus = [v for v in d["tau"].values() if v == v]
-    tau = f"tau ≈ {max(taus):.0f} steps" if taus else "tau not estimable"
-    return f"{tau}, R-hat {d['rhat_max']:.3f}, ESS {d['ess_min']:.0f}"
-
-
 def run_line(d: dict) -> str:
     """The summary line of the run: why it stopped, steps of the cap, time, likelihood points."""
+    from rrfrei.calibration import run_stats
+
     why = {"converged": "converged", "steps": "fixed --steps done", "max_steps": "step cap reached",
            "time_budget": "time budget reached"}.get(d.get("stopped_by"), str(d.get("stopped_by")))
     budget = "none" if d.get("time_budget") is None else f"{d['time_budget']:.0f} s"
@@ -308,5 +303,5 @@ def run_line(d: dict) -> str:
            f"{d['likelihood_stride']}th)" if d["likelihood_points"] < d["points"]
            else f"likelihood on all {d['points']} samples")
     return (f"stopped: {why} after {d['steps']} steps x {d['walkers']} walkers (--max-steps "
-            f"{d['max_steps']}, --time-budget {budget}, {d['seconds']:.0f} s; {advice_stats(d)}); "
+            f"{d['max_steps']}, --time-budget {budget}, {d['seconds']:.0f} s; {run_stats(d)}); "
             f"{lik}; {d['stored_draws']} draws stored")
