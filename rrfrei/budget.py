@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["TimeBudget", "BudgetExceeded", "progress"]
+__all__ = ["TimeBudget", "BudgetExceeded", "progress", "seconds_arg", "stderr_is_tty"]
 
 
 class BudgetExceeded(RuntimeError):
@@ -118,6 +118,14 @@ class _Silent:
         pass
 
 
+def stderr_is_tty() -> bool:
+    """True when stderr is a terminal (a bar redraws in place there; in a log every refresh is a
+    new line)."""
+    import sys
+
+    return bool(getattr(sys.stderr, "isatty", lambda: False)())
+
+
 def progress(total: int | None, desc: str, *, enabled: bool = True, unit: str = "it", leave: bool = False):
     """A tqdm progress bar on stderr (rate and remaining-time estimate), or a silent stand-in.
 
@@ -125,15 +133,11 @@ def progress(total: int | None, desc: str, *, enabled: bool = True, unit: str = 
     """
     if not enabled:
         return _Silent()
-    import sys
-
     from tqdm.auto import tqdm
 
-    # on a terminal the bar redraws in place; in a log (not a TTY) every refresh is a new line,
-    # so refresh rarely there
-    tty = bool(getattr(sys.stderr, "isatty", lambda: False)())
+    # on a terminal the bar redraws in place; in a log every refresh is a new line: refresh rarely
     return tqdm(total=total, desc=desc, unit=unit, leave=leave, dynamic_ncols=True,
-                mininterval=0.5 if tty else 10.0)
+                mininterval=0.5 if stderr_is_tty() else 10.0)
 
 
 def seconds_arg(text: str) -> float | None:

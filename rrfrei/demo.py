@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import importlib
 import math
-import sys
 import time
 import traceback
 import warnings
@@ -44,6 +43,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rrfrei.budget import stderr_is_tty
 from rrfrei.report import Report, Section, fmt
 
 __all__ = ["DemoResult", "DemoSettings", "Placeholder", "STEPS", "Step", "run_demo"]
@@ -795,7 +795,7 @@ def run_demo(
     )
     # inner bars (optimiser, sampler, gap, propagation, fits) only on a terminal: in a log every
     # tqdm refresh is a new line, and the step bar below says enough
-    inner = progress and bool(getattr(sys.stderr, "isatty", lambda: False)())
+    inner = progress and stderr_is_tty()
     ctx = DemoContext(settings=settings, progress=inner)
     t0 = time.perf_counter()
     bar = _tqdm(steps, progress, desc="rrfrei demo", unit="step")
