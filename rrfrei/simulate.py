@@ -80,6 +80,12 @@ ROBUST_HINT = (
 )
 
 
+def robust_hint(spec: LawSpec, status: int, robust: bool) -> str:
+    """:data:`ROBUST_HINT` for a failure message when the robust solve could have helped (a
+    ``bouc_wen`` local-iteration failure, status -1 or -2, with the default solver), else ""."""
+    return ROBUST_HINT if status in (-1, -2) and spec.name == "bouc_wen" and not robust else ""
+
+
 def simulate_force(
     law: str | LawSpec,
     params: Mapping[str, float] | np.ndarray,
@@ -167,7 +173,7 @@ def simulate_force(
             f"{STATUS_MESSAGES.get(int(status), f'status {status}')}; committed state "
             f"{np.array2string(sc, precision=6)}, failed trial state "
             f"{np.array2string(st, precision=6)}; parameters {spec.as_dict(p)}"
-            + (ROBUST_HINT if status in (-1, -2) and spec.name == "bouc_wen" and not robust else "")
+            + robust_hint(spec, status, robust)
         )
     if deviated is not None and deviated.any():
         warnings.warn(deviation_warning(spec.name, np.flatnonzero(deviated)), stacklevel=2)

@@ -391,7 +391,7 @@ import warnings  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
 
 from rrfrei.laws import STATUS_MESSAGES  # noqa: E402
-from rrfrei.simulate import ROBUST_HINT, deviation_warning, robust_local_solve  # noqa: E402
+from rrfrei.simulate import deviation_warning, robust_hint, robust_local_solve  # noqa: E402
 from structures import energy as _energy  # noqa: E402
 
 _DEFAULT_MAX_ITER = 50
@@ -599,7 +599,7 @@ def time_history(
             f"t = {(k - 1) * h:.6g} s: isolator displacement {U[k - 1, 0]:.6g} m, force "
             f"{F[k - 1]:.6g} kN, base shear {VB[k - 1]:.6g} kN; law {spec.name!r} with parameters "
             f"{spec.as_dict(p)}, {iso.count} bearings, length_scale {iso.length_scale:g}"
-            + (ROBUST_HINT if status in (-1, -2) and spec.name == "bouc_wen" and not robust else "")
+            + robust_hint(spec, status, robust)
         )
     robust_steps = np.flatnonzero(levels < 0)
     if robust_steps.size:
