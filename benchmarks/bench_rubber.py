@@ -121,14 +121,15 @@ def multirate() -> None:
     import tempfile
 
     from rubber.fit import combinations
-    from rubber.study import ACRYLIC, multirate_tests, write_kpa_csv
+    from rubber.io import write_test
+    from rubber.study import ACRYLIC, multirate_tests
 
     root = Path(__file__).resolve().parents[1]
     with tempfile.TemporaryDirectory() as tmp:
         paths = []
         for t in multirate_tests(seed=0):
             paths.append(str(Path(tmp) / f"{t.name}.csv"))
-            write_kpa_csv(paths[-1], t)
+            write_test(paths[-1], t, unit="kPa")
         load0 = os.getloadavg()[0]
         t0 = time.perf_counter()
         c0 = os.times()

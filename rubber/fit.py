@@ -331,6 +331,42 @@ def _run_cma(args, bar=None):
     return np.array(es.result.xbest), float(es.result.fbest), int(es.result.evaluations)
 
 
+def least_squares_best(fun, x0: np.ndarray, *, start_cost: float = math.inf, stop=None, **kw):
+    """``scipy.optimize.least_squares`` on the unit box that keeps the best point it evaluated.
+
+    Every evaluation counts (finite-difference Jacobians included); ``stop(n)``, asked before each
+    one with the number done so far, ends the search when it returns True (an evaluation budget,
+    a clock).  The best point seen is returned, or ``x0`` when none beats ``start_cost`` (the
+    cost 2 f = r.r already known at ``x0``; trf moves a start on a bound inside before evaluating).
+
+    Returns
+    -------
+    (x, cost, evaluations) : best point, its r.r, number of evaluations made.
+    """
+    from scipy.optimize import least_squares
+
+    seen = {"n": 0, "c": float(start_cost), "x": x0}
+
+    class _Stop(Exception):
+        pass
+
+    def f(x):
+        if stop is not None and stop(seen["n"]):
+            raise _Stop
+        seen["n"] += 1
+        r = fun(x)
+        c = float(r @ r)
+        if c < seen["c"]:
+            seen["c"], seen["x"] = c, np.array(x, dtype=float)
+        return r
+
+    try:
+        least_squares(f, x0, bounds=(0.0, 1.0), **kw)
+    except _Stop:
+        pass
+    return seen["x"], seen["c"], seen["n"]
+
+
 def _residuals(space, tests, x, tau, rtol):
     """Weighted residuals (s_exp - s_pred) / ||s_exp|| of every test.  A failing evaluation (invalid
     parameter set, integrator status, non-finite stress, kernel exception) gives the residuals of a
@@ -518,32 +554,16 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
     nev = sum(r[2] for r in runs)
     xb, fb, _ = min(runs, key=lambda r: r[1])
     if polish and not budget.expired():
-        from scipy.optimize import least_squares
-
         r0 = _residuals(space, tests, xb, tau, rtol)
-        best = {"c": float(np.sum(r0**2)), "x": xb, "n": 0}
+        with _progress(None, "polish (least squares)", enabled=progress, unit="eval") as bar:
+            def resid(x):
+                bar.update()
+                return _residuals(space, tests, x, tau, rtol)
 
-        class _Out(Exception):
-            pass
-
-        def resid(x):
-            if budget.expired():
-                raise _Out
-            best["n"] += 1
-            r = _residuals(space, tests, x, tau, rtol)
-            c = float(np.sum(r**2))
-            if c < best["c"]:
-                best["c"], best["x"] = c, np.array(x, dtype=float)
-            return r
-
-        with _progress(None, "polish (least squares)", enabled=progress, unit="eval"):
-            try:
-                least_squares(resid, xb, bounds=(0.0, 1.0), x_scale=1.0, diff_step=1e-6,
-                              max_nfev=60 * (1 + len(free)), xtol=1e-14, ftol=1e-14, gtol=1e-14)
-            except _Out:
-                pass
-        nev += best["n"]
-        xb = best["x"]
+            xb, _, n = least_squares_best(resid, xb, start_cost=float(r0 @ r0),
+                                          stop=lambda _n: budget.expired(), x_scale=1.0, diff_step=1e-6,
+                                          max_nfev=60 * (1 + len(free)), xtol=1e-14, ftol=1e-14, gtol=1e-14)
+        nev += n
     stopped = "time_budget" if budget.expired() else None
     p = space.params(xb)
     fs = objective(p, tests, tau=tau, rtol=min(rtol, 1e-8))

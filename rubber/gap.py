@@ -41,7 +41,7 @@ from rrfrei.gap.model import LEVEL, FitResult, GapModel, Prediction, white_noise
 from rrfrei.gap.residuals import gap, systematic_gap
 
 from . import integrate as _k
-from .fit import _EVAL_ERRORS, DEFAULT_FIXED, FAIL_F, _resolve_bounds, _run_cma, _Space
+from .fit import _EVAL_ERRORS, DEFAULT_FIXED, FAIL_F, _resolve_bounds, _run_cma, _Space, least_squares_best
 from .io import Test
 from .prf import PARAM_NAMES, PRFModel, PRFParams, _as_model, check_history
 
@@ -381,23 +381,10 @@ class RubberModel(GapModel):
         return [min(runs, key=lambda r: r[1])[0]]
 
     def _lsq(self, space: _Space, eff, tests: list[Test], z0: np.ndarray) -> tuple[np.ndarray, float]:
-        from scipy.optimize import least_squares
 
         nb = len(space.free)
         scale = [math.sqrt(float(np.sum(t.stress**2))) for t in tests]
         big = math.sqrt(FAIL_F / sum(t.time.size for t in tests))
-
-        seen = {"n": 0, "best": (np.inf, z0)}
-
-        def resid(z):
-            seen["n"] += 1
-            if seen["n"] > budget:
-                raise _BudgetSpent
-            r = _resid(z)
-            c = float(r @ r)
-            if c < seen["best"][0]:
-                seen["best"] = (c, np.array(z, dtype=float))
-            return r
 
         def _resid(z):
             try:
@@ -421,19 +408,10 @@ class RubberModel(GapModel):
             return np.concatenate(out)
 
         k = z0.size
-        budget = LSQ_EVALS_PER_DIM2 * (1 + k) ** 2
-        try:
-            least_squares(resid, z0, bounds=(0.0, 1.0), x_scale=1.0, diff_step=1e-6,
-                          max_nfev=60 * (1 + k), xtol=1e-12, ftol=1e-12, gtol=1e-12)
-        except _BudgetSpent:
-            pass
-        cost, z = seen["best"]
+        budget = LSQ_EVALS_PER_DIM2 * (1 + k) ** 2  # evaluations, finite-difference Jacobians included
+        z, cost, _ = least_squares_best(_resid, z0, stop=lambda n: n >= budget, x_scale=1.0, diff_step=1e-6,
+                                        max_nfev=60 * (1 + k), xtol=1e-12, ftol=1e-12, gtol=1e-12)
         return z, cost
-
-
-class _BudgetSpent(Exception):
-    """Raised inside the least-squares residual once ``LSQ_EVALS_PER_DIM2 (1 + k)^2`` evaluations
-    (finite-difference Jacobians included) are spent; the best point seen is kept."""
 
 
 def _x_of(space: _Space, p: PRFParams) -> np.ndarray:

@@ -170,13 +170,21 @@ def read_test(path: str | Path) -> Test:
     return _read_csv(p)
 
 
-def write_test(path: str | Path, test: Test) -> None:
-    """Write a :class:`Test` as CSV with columns time_s, stretch, stress_MPa."""
+_WRITE_SCALE = {"MPa": 1.0, "kPa": 1e3}
+"""Factor from the model's MPa to each stress unit :func:`write_test` can write."""
+
+
+def write_test(path: str | Path, test: Test, *, unit: str = "MPa") -> None:
+    """Write a :class:`Test` as CSV with columns ``time_s, stretch, stress_<unit>`` (nominal stress
+    in ``unit``: "MPa" or "kPa", the lab's format for soft elastomers)."""
+    if unit not in _WRITE_SCALE:
+        raise ValueError(f"unit = {unit!r}: expected one of {', '.join(_WRITE_SCALE)}")
+    k = _WRITE_SCALE[unit]
     with Path(path).open("w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["time_s", "stretch", "stress_MPa"])
+        w.writerow(["time_s", "stretch", f"stress_{unit}"])
         for a, b, c in zip(test.time, test.stretch, test.stress):
-            w.writerow([repr(float(a)), repr(float(b)), repr(float(c))])
+            w.writerow([repr(float(a)), repr(float(b)), repr(float(c) * k)])
 
 
 def load_vhb4910() -> Test:

@@ -127,12 +127,3 @@ def multirate_tests(params: PRFParams = ACRYLIC, rates: tuple[float, ...] = (0.0
             out.append(Test(f"r{r:g}_l{lm:g}", t, lam, p))
     return out
 
-
-def write_kpa_csv(path, test: Test) -> None:
-    """Write a :class:`Test` as CSV with columns ``time_s, stretch, stress_kPa`` (the lab's format)."""
-    from pathlib import Path
-
-    with Path(path).open("w") as fh:
-        fh.write("time_s,stretch,stress_kPa\n")
-        for a, b, c in zip(test.time, test.stretch, test.stress):
-            fh.write(f"{float(a)!r},{float(b)!r},{float(c) * 1e3!r}\n")

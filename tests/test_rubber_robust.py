@@ -25,8 +25,8 @@ from rubber.fit import (
     c1_from_threshold,
     fisher_report,
 )
-from rubber.io import load_vhb4910
-from rubber.study import BOX, multirate_tests, synthetic_test, write_kpa_csv
+from rubber.io import load_vhb4910, write_test
+from rubber.study import BOX, multirate_tests, synthetic_test
 
 # the parameter set of issue 16.3 at which the 12-test acrylic fit died (ZeroDivisionError in the
 # kernel inside the objective; "too many steps" from simulate)
@@ -196,7 +196,7 @@ def test_cli_fit_writes_its_outputs_when_the_uncertainty_step_fails(tmp_path, mo
 
     monkeypatch.setattr(rf, "fisher_report", broken)
     t = synthetic_test(PRESETS["A"], "p1", dt=0.5)
-    write_kpa_csv(tmp_path / "p1.csv", t)
+    write_test(tmp_path / "p1.csv", t, unit="kPa")
     code = main(["fit", str(tmp_path / "p1.csv"), "--out", str(tmp_path / "out"), "--restarts", "1",
                  "--max-evals", "64"])
     assert code == 0
@@ -218,7 +218,7 @@ def test_a_time_budget_ends_the_search_early_and_keeps_the_best_fit_so_far(acryl
 
 
 def test_cli_fit_time_budget_writes_the_best_fit_and_warns(tmp_path, acrylic, capsys):
-    write_kpa_csv(tmp_path / "a.csv", acrylic[0])
+    write_test(tmp_path / "a.csv", acrylic[0], unit="kPa")
     code = main(["fit", str(tmp_path / "a.csv"), "--out", str(tmp_path / "out"), "--bounds", "auto",
                  "--max-evals", "20000", "--time-budget", "1", "--no-progress"])
     assert code == 0
@@ -242,7 +242,7 @@ def test_twelve_test_multirate_fit_recovers_the_identifiable_combinations(tmp_pa
 
     paths = []
     for t in acrylic:
-        write_kpa_csv(tmp_path / f"{t.name}.csv", t)
+        write_test(tmp_path / f"{t.name}.csv", t, unit="kPa")
         paths.append(str(tmp_path / f"{t.name}.csv"))
     code = main(["fit", *paths, "--bounds", "auto", "--out", str(tmp_path / "out"), "--max-evals", "3000"])
     assert code == 0
