@@ -1,0 +1,173 @@
+"""Kernels that call a law are written once, as templates, and instantiated per law.
+
+A *template* is an ordinary module of the package whose ``@njit(cache=True)`` functions call a
+law through free module-level names, its *slots* (listed in the template's ``SLOTS`` tuple and
+bound there to :func:`unbound` placeholders so the module imports, lints and documents as
+usual), for example::
+
+    SLOTS = ("law_step",)
+    law_step = unbound("law_step")
+
+    @njit(cache=True)
+    def drive(p, sc, st, disp, ...):
+        ...
+        f, kt, status = law_step(p, sc, u, v, dt, st)
+
+:func:`instantiate` writes the template's source, followed by one import per slot binding it to
+a law's jitted function, to a generated file and imports that file as a module.  Numba resolves
+a global when it compiles, so every function of the instance calls (and inlines) that law's
+kernel directly: no branch over law ids, nothing to edit elsewhere when a law is added, and only
+the laws a command uses are ever compiled.
+
+Never stale
+-----------
+The generated file is named by a hash of its whole text, which contains the template's source
+and a hash of the source file of every bound function.  An edit to the template or to a law
+module therefore gives a new file and a fresh Numba cache entry; an unchanged pair reuses the
+cached machine code across processes.  The files live in ``<numba cache>/generated/`` (see
+:mod:`rrfrei._jit_cache`), which is itself keyed on every kernel source of the packages.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import inspect
+import os
+import re
+import sys
+import tempfile
+import threading
+from collections.abc import Mapping
+from pathlib import Path
+from types import ModuleType
+
+__all__ = ["bindings", "generated_dir", "instantiate", "unbound"]
+
+_LOCK = threading.Lock()
+_INSTANCES: dict[tuple, ModuleType] = {}
+_PKG = "rrfrei._generated"
+
+
+def unbound(slot: str):
+    """Placeholder for a template slot: calling it (outside an instance) raises RuntimeError."""
+
+    def _unbound(*args, **kwargs):
+        raise RuntimeError(
+            f"template slot {slot!r} is not bound: call the kernel through "
+            "rrfrei.laws.specialise.instantiate(template, bindings), not from the template module"
+        )
+
+    _unbound.__name__ = f"unbound_{slot}"
+    return _unbound
+
+
+def generated_dir() -> Path:
+    """Folder of the generated instance files (inside the Numba cache folder in use)."""
+    base = os.environ.get("NUMBA_CACHE_DIR")
+    if not base:
+        from rrfrei import _jit_cache
+
+        base = _jit_cache.CACHE_DIR or os.path.join(tempfile.gettempdir(), "rrfrei-numba")
+    path = Path(base) / "generated"
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _file_hash(path: str) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+
+
+def _import_line(slot: str, fn) -> tuple[str, str]:
+    """``from <module> import <name> as <slot>`` for a top-level function, and its file hash."""
+    py = getattr(fn, "py_func", fn)
+    module = getattr(py, "__module__", None)
+    name = getattr(py, "__name__", None)
+    mod = sys.modules.get(module) if module else None
+    if mod is None or getattr(mod, name, None) is not fn or "<" in getattr(py, "__qualname__", "<"):
+        raise ValueError(
+            f"slot {slot!r}: {fn!r} must be a module-level function (importable as "
+            f"<module>.<name>) so that the instance can import it"
+        )
+    src = inspect.getsourcefile(mod)
+    if src is None:
+        raise ValueError(f"slot {slot!r}: the module {module!r} of {name!r} has no source file")
+    return f"from {module} import {name} as {slot}  # noqa: E402,F401", _file_hash(src)
+
+
+def instantiate(template: str, bindings: Mapping[str, object], key: str) -> ModuleType:
+    """The module ``template`` with its slots bound to ``bindings``.
+
+    Parameters
+    ----------
+    template : dotted name of the template module (it must define ``SLOTS``).
+    bindings : slot name -> jitted (or plain) module-level function; every slot must be bound.
+    key : a readable tag for the file name (e.g. the law name); the identity of an instance is
+        the hash of its text, not the key.
+
+    Returns
+    -------
+    The instance module (cached per process; the compiled code is cached on disk by Numba).
+    """
+    tmpl = importlib.import_module(template)
+    slots = tuple(getattr(tmpl, "SLOTS", ()))
+    missing = [s for s in slots if s not in bindings]
+    extra = [s for s in bindings if s not in slots]
+    if missing or extra:
+        raise ValueError(
+            f"template {template!r} has slots {slots}; missing bindings {missing}, unknown {extra}"
+        )
+    ident = (template, tuple((s, id(bindings[s])) for s in slots))
+    with _LOCK:
+        hit = _INSTANCES.get(ident)
+        if hit is not None:
+            return hit
+        src_path = inspect.getsourcefile(tmpl)
+        source = Path(src_path).read_text(encoding="utf-8")
+        lines = []
+        hashes = []
+        for s in slots:
+            line, h = _import_line(s, bindings[s])
+            lines.append(line)
+            hashes.append(f"# {s}: source sha256 {h}")
+        text = (
+            f"# Generated by rrfrei.laws.specialise from {template} for {key!r}; do not edit.\n"
+            + "\n".join(hashes)
+            + "\n"
+            + source
+            + "\n\n# ---- slot bindings (rrfrei.laws.specialise) ----\n"
+            + "\n".join(lines)
+            + "\n"
+        )
+        digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+        tag = re.sub(r"[^0-9A-Za-z_]", "_", f"{template.replace('.', '_')}__{key}")
+        modname = f"{_PKG}.{tag}_{digest}"
+        path = generated_dir() / f"{tag}_{digest}.py"
+        if not path.exists():
+            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(text)
+            os.replace(tmp, path)  # atomic: concurrent writers write the same bytes
+        spec = importlib.util.spec_from_file_location(modname, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[modname] = module
+        spec.loader.exec_module(module)
+        _INSTANCES[ident] = module
+        return module
+
+
+def bindings(spec) -> dict[str, object]:
+    """Slot bindings of a law for templates that call it: ``law_step`` and ``law_step_robust``.
+
+    Both are ``(p, sc, u, v, dt, st) -> (force, tangent, status)`` (contract in
+    :mod:`rrfrei.laws.registry`); ``law_step_robust`` is the law's robust local solve where it
+    has one (it may return a positive status where it deviated from OpenSees), else its step.
+
+    Transitional: base laws only, found by module name.  To be replaced by fields of the law's
+    registry entry (issue 13.1), with augmented laws instantiated from a template.
+    """
+    if spec.effects:
+        raise NotImplementedError(f"augmented law {spec.name!r}: no specialised step yet")
+    mod = importlib.import_module(f"rrfrei.laws.{spec.name}")
+    return {"law_step": mod.step, "law_step_robust": getattr(mod, "step_robust", mod.step)}
