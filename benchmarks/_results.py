@@ -14,21 +14,32 @@ from pathlib import Path
 RESULTS = Path(__file__).with_name("RESULTS.md")
 HEADER = (
     "# Benchmark results\n\n"
-    "Every ratio is measured against the peer (openseespy, scipy reference integrators) in the "
-    "same run on the same machine. Regenerate a section with `python benchmarks/<script>.py`.\n"
+    "Every ratio is measured against the peer (openseespy, NumPy, scipy) in the same run on the "
+    "same machine, by the rules of `benchmarks/_timing.py` (see `benchmarks/README.md`): warm-up "
+    "excluded on both sides, the same number of interleaved repeats, the median, the peer's model "
+    "building and teardown outside its timer, agreement asserted in the same run. **Per core** "
+    "ratios put one thread against one thread; multi-core throughput is reported separately. "
+    "Regenerate a section with `python benchmarks/<script>.py`.\n"
 )
 
 
 def machine() -> str:
+    """Processor, cores, Python, date and the 1-minute load average (when available)."""
+    try:
+        load = f", load average {os.getloadavg()[0]:.1f}"
+    except OSError:
+        load = ""
     return (
         f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}, {time.strftime('%Y-%m-%d')}"
+        f"Python {platform.python_version()}, {time.strftime('%Y-%m-%d')}{load}"
     )
 
 
 def write_section(name: str, markdown: str) -> None:
     """Replace (or append) the section ``name`` of RESULTS.md with ``markdown``."""
     text = RESULTS.read_text() if RESULTS.exists() else HEADER
+    first = text.find("<!-- ")
+    text = HEADER + "\n" + (text[first:] if first >= 0 else "")  # the rules above every section
     block = f"<!-- {name}:start -->\n{markdown.strip()}\n\n_Machine: {machine()}._\n<!-- {name}:end -->"
     pattern = re.compile(rf"<!-- {re.escape(name)}:start -->.*?<!-- {re.escape(name)}:end -->", re.S)
     if pattern.search(text):
@@ -36,3 +47,12 @@ def write_section(name: str, markdown: str) -> None:
     else:
         text = text.rstrip() + "\n\n" + block + "\n"
     RESULTS.write_text(text)
+
+
+def report(name: str, markdown: str, *, quick: bool) -> None:
+    """Print ``markdown``; write it as section ``name`` unless this is a ``--quick`` smoke run."""
+    print(markdown)
+    if quick:
+        print(f"\n(--quick: section {name!r} of {RESULTS.name} left unchanged)")
+    else:
+        write_section(name, markdown)
