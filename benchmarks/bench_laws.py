@@ -1,38 +1,37 @@
-"""Speed of the law kernels against openseespy on the same 10,000-step displacement history.
+"""Speed of the isolator laws against openseespy on the same 10,000-step displacement history.
 
-For each OpenSees law: openseespy's fastest path (model built, then ONE ``analyze(10000)`` call
-with an element recorder writing to a file; building the model is excluded) against
-``rrfrei.simulate_force`` (public API, validation included) and the bare Numba driver
-(``rrfrei.laws.kernel.run_history``), measured in the same run, best of ``REPEAT``.  Also the
-cold start in a fresh subprocess (import + first ``simulate_force`` call) with an empty and with a
-warm Numba cache.  Writes section ``bench_laws`` of ``benchmarks/RESULTS.md``.
+For each OpenSees law, per core (both single-threaded): openseespy's fastest path, ONE
+``analyze(10000)`` call with an element recorder writing to a file, against
+``rrfrei.simulate_force`` (public API, validation and output arrays included).  The peer's model
+building and recorder set-up (before) and ``ops.wipe()`` plus reading the recorder file (after)
+are outside its timer; warm-up excluded on both sides, the same interleaved repeats, medians, and
+the forces asserted equal in the same run.  A law history is sequential, so there is no
+multi-core figure.  Cold start: a fresh interpreter (``import rrfrei`` + first ``simulate_force``)
+with an empty and with a warm temporary Numba cache.  Writes section ``bench_laws``.
 
-Run: ``python benchmarks/bench_laws.py``.
+Run: ``python benchmarks/bench_laws.py [--quick]``.
 """
 
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
-
-import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(1, str(HERE.parent))
+sys.path.insert(2, str(HERE.parent / "tests"))
 
-from _results import write_section  # noqa: E402
+import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
+import numpy as np  # noqa: E402
+from _results import report  # noqa: E402
 
 import rrfrei  # noqa: E402
-from rrfrei.laws import get  # noqa: E402
-from rrfrei.laws.kernel import run_history  # noqa: E402
 
 N = 10_000
-REPEAT = 5
+TOLERANCE = 1e-10  # max |f - f_ops| / max |f_ops|
 
 PARAMS = {
     "plasticity": dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.02, mu=2.0),
@@ -46,110 +45,89 @@ PARAMS = {
 }
 
 
-def history() -> np.ndarray:
-    """10,000 samples: 50 sine cycles of 200 steps, amplitude growing 2 -> 40 mm."""
-    k = np.arange(1, N + 1)
-    return (0.002 + 0.038 * k / N) * np.sin(2 * np.pi * k / 200)
+def history(n: int = N) -> np.ndarray:
+    """n samples [m]: sine cycles of 200 steps, amplitude growing 2 -> 40 mm."""
+    k = np.arange(1, n + 1)
+    return (0.002 + 0.038 * k / n) * np.sin(2 * np.pi * k / 200)
 
 
-def best(fn, repeat=REPEAT) -> float:
-    out = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t0)
-    return min(out)
-
-
-def time_opensees(ops, law: str, p: dict, u: np.ndarray) -> tuple[float, np.ndarray]:
+def opensees_side(ops, law: str, p: dict, u: np.ndarray) -> tm.Side:
+    """openseespy: build + recorder (untimed), ``analyze(n)`` (timed), wipe + read file (untimed)."""
     import opensees_harness as h
 
-    times = []
-    force = None
-    for _ in range(REPEAT):
+    def setup():
         fd, path = tempfile.mkstemp(suffix=".out")
         os.close(fd)
+        idx, sign = h._build(ops, law, p, u)
+        ops.recorder("Element", "-file", path, "-precision", 17, "-ele", 1, "force")
+        return path, idx, sign
+
+    def finish(state, status):
+        path, idx, sign = state
+        ops.wipe()  # flushes and closes the recorder
         try:
-            idx, sign = h._build(ops, law, p, u)
-            ops.recorder("Element", "-file", path, "-precision", 17, "-ele", 1, "force")
-            t0 = time.perf_counter()
-            status = ops.analyze(u.size)
-            ops.wipe()
-            times.append(time.perf_counter() - t0)
-            assert status == 0
-            force = sign * np.loadtxt(path, ndmin=2)[-u.size:, idx]
+            if status != 0:
+                raise RuntimeError(f"openseespy analysis of {law} failed (status {status})")
+            return sign * np.loadtxt(path, ndmin=2)[-u.size:, idx]
         finally:
             os.unlink(path)
-    return min(times), force
+
+    return tm.Side("openseespy", lambda _s: ops.analyze(u.size), setup, finish)
 
 
-COLD = """
-import time
-t0 = time.perf_counter()
+def max_rel(f: np.ndarray, f_os: np.ndarray) -> float:
+    return float(np.max(np.abs(f - f_os)) / np.max(np.abs(f_os)))
+
+
+COLD = tm.COLD_PRELUDE + """
 import numpy as np
 import rrfrei
-rrfrei.simulate_force({law!r}, {params!r}, np.linspace(0.0, 0.02, 100))
-print(time.perf_counter() - t0)
+t1 = time.perf_counter()
+rrfrei.simulate_force("bouc_wen", {params!r}, np.linspace(0.0, 0.02, 100))
+print(json.dumps({{"import": t1 - _t0, "first": time.perf_counter() - t1}}))
 """
 
 
-def cold_start(law: str, params: dict, cache_dir: str) -> float:
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
-    out = subprocess.run([sys.executable, "-c", COLD.format(law=law, params=params)], env=env,
-                         capture_output=True, text=True, check=True)
-    return float(out.stdout.strip().splitlines()[-1])
-
-
 def main() -> None:
+    args = tm.parser(__doc__).parse_args()
     import openseespy.opensees as ops
 
-    u = history()
+    repeat = 2 if args.quick else 7
+    u = history(2000 if args.quick else N)
+    labels = list(PARAMS)[:2] if args.quick else list(PARAMS)
     rows = []
-    for label, p in PARAMS.items():
+    for label in labels:
+        p = PARAMS[label]
         law = label.split(" ")[0]
-        spec = get(law)
-        packed = spec.pack(p)
-        force = np.empty(N)
-        tang = np.empty(N)
-        t = np.zeros(N)
-        state0 = np.array(spec.initial_state)
-        rrfrei.simulate_force(law, p, u)  # compile / load
-        t_api = best(lambda law=law, p=p: rrfrei.simulate_force(law, p, u))
-        t_raw = best(lambda spec=spec, packed=packed, state0=state0, t=t, force=force, tang=tang:
-                     run_history(spec.code, packed, state0, u, t, False, 1, force, tang))
-        t_os, f_os = time_opensees(ops, law, p, u)
-        f = rrfrei.simulate_force(law, p, u)
-        err = float(np.max(np.abs(f - f_os)) / np.max(np.abs(f_os)))
-        rows.append((label, t_os, t_api, t_raw, err))
-        print(f"{label:22s} openseespy {t_os * 1e3:8.2f} ms  simulate_force {t_api * 1e3:7.3f} ms "
-              f"(x{t_os / t_api:6.0f})  kernel {t_raw * 1e3:7.3f} ms (x{t_os / t_raw:6.0f})  "
-              f"max rel diff {err:.1e}")
-
-    with tempfile.TemporaryDirectory() as cold_dir:
-        t_cold = cold_start("bouc_wen", PARAMS["bouc_wen (eta=1)"], cold_dir)
-        t_warm = cold_start("bouc_wen", PARAMS["bouc_wen (eta=1)"], cold_dir)
-    print(f"cold start (import + first call): empty cache {t_cold:.2f} s, warm cache {t_warm:.2f} s")
-
-    lines = [
-        "Each law over the same 10,000-step history (50 sine cycles of 200 steps, amplitude "
-        "2 -> 40 mm), best of 5. openseespy: one `analyze(10000)` with an element recorder "
-        "(model building excluded); rrfrei: `simulate_force` (validation included) and the bare "
-        "Numba driver `run_history`. Ratio = openseespy time / rrfrei time.",
-        "",
-        "| law | parameters | openseespy [ms] | simulate_force [ms] | ratio | kernel [ms] | ratio "
-        "| max rel. diff |",
-        "|---|---|---:|---:|---:|---:|---:|---:|",
-    ]
-    for (label, t_os, t_api, t_raw, err), p in zip(rows, PARAMS.values()):
+        ours = tm.Side("rrfrei", lambda _s, law=law, p=p: rrfrei.simulate_force(law, p, u))
+        c = tm.compare(ours, opensees_side(ops, law, p, u), repeat=repeat, agree=max_rel,
+                       tolerance=TOLERANCE, what=label)
         ps = ", ".join(f"{k}={v:g}" for k, v in p.items())
-        lines.append(f"| {label} | {ps} | {t_os * 1e3:.2f} | {t_api * 1e3:.3f} | {t_os / t_api:.0f} "
-                     f"| {t_raw * 1e3:.3f} | {t_os / t_raw:.0f} | {err:.1e} |")
-    lines += [
+        rows.append(f"| {label} | {ps} | {tm.fmt(c.peer.median)} | {tm.fmt(c.ours.median)} "
+                    f"| **{c.ratio:.0f}x** | {c.discrepancy:.1e} |")
+        print(rows[-1], flush=True)
+    cold = tm.cold_start(COLD.format(params=PARAMS["bouc_wen (eta=1)"]))
+    lines = [
+        f"Each law over the same {u.size:,}-step history (sine cycles of 200 steps, amplitude "
+        "2 -> 40 mm). **Per core**, both single-threaded, median of "
+        f"{repeat} interleaved runs after one warm-up each. openseespy: one `analyze({u.size})` "
+        "with an element recorder; building the model, `ops.wipe()` and reading the recorder file "
+        "are outside its timer. rrfrei: `simulate_force` (validation and output included). "
+        "Ratio = openseespy median / rrfrei median; the forces are asserted equal "
+        f"(<= {TOLERANCE:g} of the peak) in the same run.",
         "",
-        f"Cold start in a fresh subprocess (`import rrfrei` + first `simulate_force`, bouc_wen): "
-        f"empty Numba cache {t_cold:.2f} s, warm cache {t_warm:.2f} s.",
+        "| law | parameters | openseespy, 1 thread | rrfrei, 1 thread | ratio per core | max rel. diff |",
+        "|---|---|---:|---:|---:|---:|",
+        *rows,
+        "",
+        "A law history is sequential: no multi-core figure (calibration and propagation batch many).",
+        "",
+        "Cold start in a fresh interpreter (`import rrfrei` + first `simulate_force`, bouc_wen; "
+        f"temporary `NUMBA_CACHE_DIR`): empty cache {cold.cold['import']:.2f} s + {cold.cold['first']:.2f} s "
+        f"(compilation), warm cache (filled by that run) {cold.warm['import']:.2f} s + "
+        f"{cold.warm['first']:.2f} s." + "".join(f" Note: {n}." for n in cold.notes),
     ]
-    write_section("bench_laws", "\n".join(lines))
+    report("bench_laws", "\n".join(lines), quick=args.quick)
 
 
 if __name__ == "__main__":

@@ -1,147 +1,149 @@
 """Shear-building time history: rrfrei (Numba) against openseespy on the same analysis.
 
-* one analysis: the five-story example building on ``bouc_wen``, 8,000 Newmark steps of the
-  Landers (Lucerne) record, against openseespy running the same model (``tests/opensees_dynamic.py``)
-  in ONE ``analyze(8000)`` call with a node recorder (its fastest path), in the same run; the two
-  agree to ~1e-11, checked here;
+* per core (headline): the five-story example building on ``bouc_wen``, 8,000 Newmark steps of
+  the Landers (Lucerne) record; ``structures.time_history`` (public API: full histories, energy,
+  validation) against openseespy running the same model (``tests/opensees_dynamic.py``) in ONE
+  ``analyze(8000)`` call with a node recorder (its fastest path).  Both single-threaded; building
+  the OpenSees model (before) and ``ops.wipe()`` plus reading the recorder file (after) are
+  outside its timer; warm-up excluded on both sides, the same interleaved repeats, medians, and
+  the isolator displacement asserted equal in the same run;
 * batch throughput: 1,000 parameter sets (lognormal draws around the building's parameters) on
-  the same 8,000 steps, ``time_history_batch`` on 1 and 2 Numba threads, in analyses per second;
-* cold start: a fresh interpreter importing ``structures`` and running the first analysis with
-  an empty Numba cache (compilation) and with a warm one.
+  the same 8,000 steps, ``structures.time_history_batch`` on 1 thread and on every core;
+* cold start: a fresh interpreter importing ``structures`` and running the first analysis with an
+  empty and with a warm temporary Numba cache.
 
-Run ``python benchmarks/bench_time_history.py``; it writes the ``bench_time_history`` section of
-``benchmarks/RESULTS.md``.
+Run ``python benchmarks/bench_time_history.py [--quick]``; writes section ``bench_time_history``.
 """
 
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-import numpy as np
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(1, str(HERE.parent))
+sys.path.insert(2, str(HERE.parent / "tests"))
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import numba  # noqa: E402
-import openseespy.opensees as ops  # noqa: E402
-from _results import write_section  # noqa: E402
-from opensees_dynamic import shear_building_one_call  # noqa: E402
+import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
+import numpy as np  # noqa: E402
+from _results import report  # noqa: E402
 
 import ground_motions  # noqa: E402
 import structures  # noqa: E402
 
 N_STEPS = 8000
 N_BATCH = 1000
+TOLERANCE = 1e-8  # max |u_iso - u_iso,ops| / max |u_iso,ops|
 
 
-def record() -> ground_motions.Record:
+def record(n_steps: int) -> ground_motions.Record:
     r = ground_motions.load("landers").with_leading_zero()
-    return ground_motions.Record(r.name, r.dt, r.accel[: N_STEPS + 1], r.meta)
+    return ground_motions.Record(r.name, r.dt, r.accel[: n_steps + 1], r.meta)
 
 
-def best(fn, repeat: int, clock=time.perf_counter) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = clock()
-        fn()
-        times.append(clock() - t0)
-    return min(times)
+def opensees_side(ops, bld, rec) -> tm.Side:
+    """openseespy: model + recorder (untimed), one ``analyze`` call (timed), wipe + read (untimed)."""
+    from opensees_dynamic import build
+
+    def setup():
+        fd, path = tempfile.mkstemp(suffix=".out")
+        os.close(fd)
+        roof = build(ops, bld, rec.accel, rec.dt)
+        ops.recorder("Node", "-file", path, "-precision", 17, "-node", 2, roof, "-dof", 1, "disp")
+        return path
+
+    def finish(path, status):
+        ops.wipe()  # flushes and closes the recorder
+        try:
+            if status != 0:
+                raise RuntimeError(f"openseespy time history failed (status {status})")
+            return np.loadtxt(path, ndmin=2)[:, 0]
+        finally:
+            os.unlink(path)
+
+    return tm.Side("openseespy", lambda _s: ops.analyze(rec.npts - 1, rec.dt), setup, finish)
 
 
-COLD = """
-import time
-t0 = time.perf_counter()
+def batch_params(bld, n: int) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    P = np.tile(bld.isolator.packed(), (n, 1))
+    P[:, 0] *= np.exp(rng.normal(0, 0.1, n))
+    P[:, 1] *= np.exp(rng.normal(0, 0.1, n))
+    P[:, 2] = np.clip(P[:, 2] * np.exp(rng.normal(0, 0.1, n)), 0.05, 0.9)
+    return P
+
+
+COLD = tm.COLD_PRELUDE + """
 import ground_motions, structures
 r = ground_motions.load("landers")
 b = structures.load_building("five_story")
 t1 = time.perf_counter()
 structures.time_history(b, r)
-t2 = time.perf_counter()
-print(t1 - t0, t2 - t1)
+print(json.dumps({"import": t1 - _t0, "first": time.perf_counter() - t1}))
 """
-
-
-def cold_start(cache: str) -> tuple[float, float]:
-    env = {**os.environ, "NUMBA_CACHE_DIR": cache}
-    out = subprocess.run([sys.executable, "-c", COLD], env=env, capture_output=True, text=True, check=True)
-    a, b = out.stdout.split()
-    return float(a), float(b)
 
 
 def main() -> None:
-    rec = record()
+    args = tm.parser(__doc__).parse_args()
+    import openseespy.opensees as ops
+
+    n_steps = 2000 if args.quick else N_STEPS
+    n_batch = 50 if args.quick else N_BATCH
+    repeat = 2 if args.quick else 7
+    rec = record(n_steps)
     bld = structures.load_building("five_story")
     assert bld.isolator.law == "bouc_wen"
 
-    # ---- one analysis, same run, same steps
-    ours = structures.time_history(bld, rec)  # compile / load from cache
-    t_ours = best(lambda: structures.time_history(bld, rec), 50)
-    cpu_ours = best(lambda: structures.time_history(bld, rec), 50, time.process_time)
-    peer = shear_building_one_call(ops, bld, rec.accel, rec.dt)
-    err = np.max(np.abs(peer[:, 0] - ours.isolator_disp[1:])) / np.max(np.abs(peer[:, 0]))
-    assert err < 1e-8, err
+    # ---- one analysis, per core
+    ours = tm.Side("rrfrei", lambda _s: structures.time_history(bld, rec))
+    c = tm.compare(ours, opensees_side(ops, bld, rec), repeat=repeat, tolerance=TOLERANCE,
+                   agree=lambda r, u_os: float(np.max(np.abs(u_os - r.isolator_disp[1:])) / np.max(np.abs(u_os))),
+                   what="five-story time history")
+    iters = structures.time_history(bld, rec).newton_iterations[1:].mean()
+    print(f"per core: {c.ratio:.0f}x ({tm.fmt(c.peer.median)} / {tm.fmt(c.ours.median)})", flush=True)
 
-    def opensees_total():
-        shear_building_one_call(ops, bld, rec.accel, rec.dt)
-
-    t_os = best(opensees_total, 3)
-    cpu_os = best(opensees_total, 3, time.process_time)
-
-    # ---- batch throughput
-    rng = np.random.default_rng(0)
-    base = bld.isolator.packed()
-    P = np.tile(base, (N_BATCH, 1))
-    P[:, 0] *= np.exp(rng.normal(0, 0.1, N_BATCH))
-    P[:, 1] *= np.exp(rng.normal(0, 0.1, N_BATCH))
-    P[:, 2] = np.clip(P[:, 2] * np.exp(rng.normal(0, 0.1, N_BATCH)), 0.05, 0.9)
-    structures.time_history_batch(bld, rec, P[:4])  # compile / load
+    # ---- batch throughput, 1 thread and every core
+    P = batch_params(bld, n_batch)
+    batch = tm.Side("time_history_batch", lambda _s: structures.time_history_batch(bld, rec, P))
     rates = {}
-    for threads in (1, 2):
-        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-        t = best(lambda: structures.time_history_batch(bld, rec, P), 1)
-        rates[threads] = N_BATCH / t
-    out = structures.time_history_batch(bld, rec, P)
+    for n in sorted({1, tm.cores()}):
+        rate, t, out = tm.throughput(batch, n_batch, repeat=1 if args.quick else 3, n_threads=n)
+        rates[t.threads] = rate
     conv = int(out["converged"].sum())
+    per_core_batch = rates[1] * c.peer.median
+    multi = max(rates)
 
-    # ---- cold start
-    with tempfile.TemporaryDirectory() as cache:
-        cold = cold_start(cache)
-        warm = cold_start(cache)
-
-    ratio = t_os / t_ours
+    cold = tm.cold_start(COLD)
     md = f"""
-Five-story example building on `bouc_wen` (17 bearings, length_scale 3), {N_STEPS} Newmark steps of
-Landers/Lucerne (dt = {rec.dt:g} s), Newton + NormDispIncr 1e-12, average
-{ours.newton_iterations[1:].mean():.2f} Newton iterations per step.
+Five-story example building on `bouc_wen` (17 bearings, length_scale 3), {n_steps} Newmark steps of
+Landers/Lucerne (dt = {rec.dt:g} s), Newton + NormDispIncr 1e-12, average {iters:.2f} Newton
+iterations per step. **Per core**: both single-threaded, median of {repeat} interleaved runs after
+one warm-up each; openseespy's model building, `ops.wipe()` and reading its recorder file are
+outside its timer.
 
-| analysis | wall time | ratio | CPU time | ratio |
-|---|---|---|---|---|
-| openseespy, one `analyze({N_STEPS})` call + node recorder (build included) | {t_os * 1e3:.1f} ms | 1 \
-| {cpu_os * 1e3:.1f} ms | 1 |
-| `structures.time_history` (full histories, energy, validation) | {t_ours * 1e3:.2f} ms | \
-**{ratio:.0f}x** | {cpu_ours * 1e3:.2f} ms | **{cpu_os / cpu_ours:.0f}x** |
+| analysis | 1 thread | ratio per core |
+|---|---:|---:|
+| openseespy, one `analyze({n_steps})` call + node recorder | {tm.fmt(c.peer.median)} | 1 |
+| `structures.time_history` (full histories, energy, validation) | {tm.fmt(c.ours.median)} | **{c.ratio:.0f}x** |
 
-(best of 3 openseespy and 50 rrfrei runs; CPU time = `time.process_time`, less sensitive to a
-busy machine)
+Agreement of the isolator displacement with openseespy in this run: {c.discrepancy:.1e} relative
+(asserted <= {TOLERANCE:g}).
 
-Agreement of the isolator displacement with openseespy in this run: {err:.1e} relative.
+**Batch throughput** (`time_history_batch`, {n_batch} parameter sets, same {n_steps} steps,
+{conv}/{n_batch} converged; median of {1 if args.quick else 3} after one warm-up):
+{rates[1]:.0f} analyses/s on 1 thread ({per_core_batch:.0f}x openseespy's single-threaded rate),
+**{rates[multi]:.0f} analyses/s on {multi} threads** (multi-core; {rates[multi] / rates[1]:.2f}x the
+1-thread rate).
 
-Batch (`time_history_batch`, {N_BATCH} parameter sets, same {N_STEPS} steps, {conv}/{N_BATCH} converged):
-{rates[1]:.0f} analyses/s on 1 thread, **{rates[2]:.0f} analyses/s on 2 threads**
-({rates[2] / rates[1]:.2f}x).
-
-Cold start (fresh interpreter: import + first five-story analysis of the full Landers record):
-empty Numba cache {cold[0]:.2f} s import + {cold[1]:.1f} s first call (compilation);
-warm cache {warm[0]:.2f} s + {warm[1]:.2f} s.
+Cold start (fresh interpreter: import + first five-story analysis of the full Landers record;
+temporary `NUMBA_CACHE_DIR`): empty cache {cold.cold['import']:.2f} s import + {cold.cold['first']:.1f} s
+first call (compilation); warm cache (filled by that run) {cold.warm['import']:.2f} s +
+{cold.warm['first']:.2f} s.{"".join(f" Note: {n}." for n in cold.notes)}
 """
-    print(md)
-    write_section("bench_time_history", md)
+    report("bench_time_history", md, quick=args.quick)
 
 
 if __name__ == "__main__":
