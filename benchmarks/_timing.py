@@ -95,12 +95,16 @@ class Side:
         Untimed, after every call of ``run``: ``finish(state, raw) -> output`` (teardown and
         read-back, e.g. ``ops.wipe()`` then loading the recorder file); the output of the last
         timed repeat is what the agreement check sees.  Default: ``raw``.
+    work
+        Units of work one ``run`` does (e.g. 32 likelihood evaluations in one batched call);
+        ratios compare time per unit.
     """
 
     label: str
     run: Callable[[Any], Any]
     setup: Callable[[], Any] = _none
     finish: Callable[[Any, Any], Any] = _identity
+    work: float = 1.0
 
     def once(self, clock: Callable[[], float] = time.perf_counter) -> tuple[float, Any]:
         """Setup (untimed), run (timed), finish (untimed): ``(seconds, output)``."""
@@ -118,11 +122,17 @@ class Timing:
     label: str
     times: tuple[float, ...]
     threads: int
+    work: float = 1.0
 
     @property
     def median(self) -> float:
-        """Median time [s]: the statistic every ratio uses."""
+        """Median time [s] of one run: the statistic every ratio uses."""
         return statistics.median(self.times)
+
+    @property
+    def per_unit(self) -> float:
+        """Median time [s] per unit of work (``median / work``)."""
+        return self.median / self.work
 
     @property
     def spread(self) -> tuple[float, float]:
@@ -157,8 +167,8 @@ class Comparison:
 
     @property
     def ratio(self) -> float:
-        """peer median / ours median (per core: both on one thread)."""
-        return self.peer.median / self.ours.median
+        """Peer median time per unit of work / ours (per core: both on one thread)."""
+        return self.peer.per_unit / self.ours.per_unit
 
 
 @dataclass(frozen=True)
@@ -232,7 +242,7 @@ def measure(side: Side, *, repeat: int, warmup: int = 1,
     for _ in range(repeat):
         seconds, out = side.once(clock)
         times.append(seconds)
-    return Timing(side.label, tuple(times), numba.get_num_threads()), out
+    return Timing(side.label, tuple(times), numba.get_num_threads(), side.work), out
 
 
 def compare(ours: Side, peer: Side, *, repeat: int, agree: Callable[[Any, Any], float],
@@ -278,18 +288,17 @@ def compare(ours: Side, peer: Side, *, repeat: int, agree: Callable[[Any, Any], 
             f"{what or ours.label}: {ours.label} and {peer.label} disagree by {disc:.3g} "
             f"(tolerance {tolerance:.3g}); no ratio is reported for different results"
         )
-    return Comparison(Timing(ours.label, tuple(t_o), n), Timing(peer.label, tuple(t_p), n), disc, tolerance)
+    return Comparison(Timing(ours.label, tuple(t_o), n, ours.work),
+                      Timing(peer.label, tuple(t_p), n, peer.work), disc, tolerance)
 
 
-def throughput(side: Side, units: float, *, repeat: int, warmup: int = 1,
+def throughput(side: Side, *, repeat: int, warmup: int = 1,
                n_threads: int | None = None) -> tuple[float, Timing, Any]:
-    """Multi-core throughput: ``(units per second at the median, Timing, output)``.
-
-    ``n_threads`` defaults to every core (:func:`cores`).
-    """
+    """Throughput on ``n_threads`` (default every core, :func:`cores`): ``(side.work per second
+    at the median, Timing, output)``."""
     with threads(n_threads or cores()):
         timing, out = measure(side, repeat=repeat, warmup=warmup)
-    return units / timing.median, timing, out
+    return side.work / timing.median, timing, out
 
 
 # ---------------------------------------------------------------------------------------------

@@ -105,7 +105,7 @@ def main() -> None:
         c = tm.compare(ours, peer, repeat=repeat, agree=max_rel, tolerance=TOLERANCE, what=name)
         rows.append(f"| {name} | {rec.npts} | {tm.fmt(c.ours.median)} | {tm.fmt(c.peer.median)} "
                     f"| **{c.ratio:.0f}x** | {c.discrepancy:.1e} |")
-        rate, t_multi, _ = tm.throughput(ours, 1.0, repeat=repeat)
+        rate, t_multi, _ = tm.throughput(ours, repeat=repeat)
         multi.append(f"| {name} | {t_multi.threads} | {tm.fmt(t_multi.median)} | {rate:.0f} |")
         print(rows[-1], multi[-1], flush=True)
     lsim = ""
