@@ -1,54 +1,55 @@
-"""Propagation throughput: 1,000 posterior draws x every bundled record on the 5-story example.
+"""Propagation: posterior draws x every bundled record on the 5-story example, against openseespy.
 
 Measures, in one run on this machine:
 
-* wall time of ``structures.propagate`` (local executor: Numba prange over all cores) for 1,000
-  draws x all bundled records at scale 1, and analyses per second;
-* the time of one openseespy analysis of the same building under the same records (the peer model
-  of ``tests/opensees_dynamic.py``, whole record in one ``analyze`` call: openseespy's fastest
-  path), averaged over the records, and the ratio (openseespy time per analysis) / (ours);
+* **per core** (headline): for each bundled record, ``structures.propagate`` of ``PER_RECORD``
+  draws on ONE Numba thread against openseespy on one thread analysing the same building under
+  the same record (the peer model of ``tests/opensees_dynamic.py``, whole record in one
+  ``analyze`` call: openseespy's fastest path; model building, ``ops.wipe()`` and reading the
+  recorder file outside its timer).  The draws are all the building's own isolator parameters,
+  so both sides do exactly the same analyses and every peak isolator displacement of ours is
+  asserted equal to openseespy's in the same run.  Warm-up excluded on both sides, the same
+  interleaved repeats, medians; the ratio is (sum over records of the peer's time per analysis)
+  / (sum of ours), i.e. one analysis of every record;
+* **multi-core throughput**: wall time of ``structures.propagate`` (local executor: Numba
+  ``prange`` over every core) for 1,000 draws x all bundled records at scale 1, and analyses per
+  second.  The draws are the building's parameters perturbed lognormally (10 % log-sd), which is
+  what a posterior of a well-identified law looks like;
 * cold start in a fresh interpreter: import + first ``propagate`` call (one draw, short record),
-  with the Numba cache warm and with an empty cache (compilation).
+  with an empty and with a warm (filled by the first run) temporary Numba cache.
 
-The draws are the building's own isolator parameters perturbed lognormally (10 % log-sd), which
-is what a posterior of a well-identified law looks like; the cost of an analysis does not depend
-on where the draws come from.
-
-Run: ``python benchmarks/bench_propagation.py [--samples N]``; records section ``bench_propagation``.
+Run: ``python benchmarks/bench_propagation.py [--quick] [--samples N]``; section ``bench_propagation``.
 """
 
 from __future__ import annotations
 
-import argparse
 import os
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
-
-import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(1, str(ROOT))
+sys.path.insert(2, str(ROOT / "tests"))
 
-from _results import write_section  # noqa: E402
+import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
+import numpy as np  # noqa: E402
+from _results import report  # noqa: E402
 
-COLD = """
-import time
-t0 = time.perf_counter()
+PER_RECORD = 20  # draws per record in the per-core comparison
+TOLERANCE = 1e-8  # relative difference of the peak isolator displacement
+
+COLD = tm.COLD_PRELUDE + """
 import numpy as np, pandas as pd, ground_motions, structures
-from structures.propagate import propagate
 b = structures.load_building("five_story")
 r = ground_motions.load("rinaldi")
 r = ground_motions.Record(r.name, r.dt, r.accel[:200], r.meta)
 df = pd.DataFrame([dict(b.isolator.params)]); df.attrs["law"] = b.isolator.law
 t1 = time.perf_counter()
-propagate(df, b, [r], n_samples=1, progress=False)
-t2 = time.perf_counter()
-print(t1 - t0, t2 - t1)
+structures.propagate(df, b, [r], n_samples=1, progress=False)
+print(json.dumps({"import": t1 - _t0, "first": time.perf_counter() - t1}))
 """
 
 
@@ -72,81 +73,109 @@ def draws(building, n: int, seed: int = 0):
     return df
 
 
-def cold_start(cache_dir: str) -> tuple[float, float]:
-    env = {**os.environ, "NUMBA_CACHE_DIR": cache_dir}
-    out = subprocess.run([sys.executable, "-c", COLD], capture_output=True, text=True, env=env, cwd=ROOT,
-                         check=True)
-    a, b = out.stdout.split()[-2:]
-    return float(a), float(b)
+def same_draws(building, n: int):
+    """n copies of the building's own isolator parameters (both sides do the same analyses)."""
+    import pandas as pd
+
+    df = pd.DataFrame([dict(building.isolator.params)] * n)
+    df.attrs.update(law=building.isolator.law, disp_min_m=-0.1, disp_max_m=0.1)
+    return df
+
+
+def opensees_side(ops, bld, rec) -> tm.Side:
+    """openseespy: model + recorder (untimed), one ``analyze`` call (timed), wipe + read (untimed)."""
+    from opensees_dynamic import build
+
+    def setup():
+        fd, path = tempfile.mkstemp(suffix=".out")
+        os.close(fd)
+        roof = build(ops, bld, rec.accel, rec.dt)
+        ops.recorder("Node", "-file", path, "-precision", 17, "-node", 2, roof, "-dof", 1, "disp")
+        return path
+
+    def finish(path, status):
+        ops.wipe()  # flushes and closes the recorder
+        try:
+            if status != 0:
+                raise RuntimeError(f"openseespy failed on {rec.name} (status {status})")
+            return float(np.max(np.abs(np.loadtxt(path, ndmin=2)[:, 0])))
+        finally:
+            os.unlink(path)
+
+    return tm.Side("openseespy", lambda _s: ops.analyze(rec.npts - 1, rec.dt), setup, finish)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--samples", type=int, default=1000)
+    ap = tm.parser(__doc__)
+    ap.add_argument("--samples", type=int, default=1000, help="draws per record of the multi-core batch")
     args = ap.parse_args()
-
-    import numba
+    import openseespy.opensees as ops
 
     import ground_motions
     import structures
-    from structures.propagate import propagate
 
     bld = structures.load_building("five_story")
-    names = list(ground_motions.available())
-    recs = [ground_motions.load(n) for n in names]
-    post = draws(bld, 20 * args.samples)
+    names = list(ground_motions.available())[: 2 if args.quick else None]
+    recs = [ground_motions.load(n).with_leading_zero() for n in names]
     steps = sum(r.npts for r in recs)
+    samples = 20 if args.quick else args.samples
+    per_record = 4 if args.quick else PER_RECORD
+    repeat = 2 if args.quick else 5
 
-    # warm-up (compilation) on a short piece, not timed
-    short = ground_motions.Record("w", recs[0].dt, recs[0].accel[:100])
-    propagate(post, bld, [short], n_samples=4, progress=False)
+    # ---- per core: record by record, identical analyses on both sides
+    same = same_draws(bld, per_record)
+    rows, ours_sum, peer_sum = [], 0.0, 0.0
+    for rec in recs:
+        ours = tm.Side("rrfrei", lambda _s, rec=rec: structures.propagate(
+            same, bld, [rec], n_samples=per_record, progress=False).table, work=per_record)
+        c = tm.compare(ours, opensees_side(ops, bld, rec), repeat=repeat, tolerance=TOLERANCE, what=rec.name,
+                       agree=lambda t, peak: float(np.max(np.abs(t["iso_disp_peak_m"] - peak)) / peak))
+        ours_sum += c.ours.per_unit
+        peer_sum += c.peer.per_unit
+        rows.append(f"| {rec.name} | {rec.npts} | {tm.fmt(c.peer.per_unit)} | {tm.fmt(c.ours.per_unit)} "
+                    f"| {c.ratio:.0f}x | {c.discrepancy:.1e} |")
+        print(rows[-1], flush=True)
+    ratio = peer_sum / ours_sum
 
-    t0 = time.perf_counter()
-    rs = propagate(post, bld, recs, n_samples=args.samples, progress=False, seed=1)
-    wall = time.perf_counter() - t0
-    n_runs = len(rs.table)
-    ours = wall / n_runs
+    # ---- multi-core throughput: the whole batch on every core (kernels warm from the above)
+    post = draws(bld, 20 * samples)
+    batch = tm.Side("propagate", lambda _s: structures.propagate(post, bld, recs, n_samples=samples,
+                                                                 progress=False, seed=1),
+                    work=samples * len(recs))
+    rate, t_batch, rs = tm.throughput(batch, repeat=1, warmup=0)
     failed = int((~rs.table["converged"]).sum())
+    n_runs = len(rs.table)
 
-    # the peer: openseespy, same building (MAP-like parameters), same records
-    import openseespy.opensees as ops
-    from opensees_dynamic import shear_building_one_call
-
-    t_os = []
-    for r in recs:
-        r0 = r.with_leading_zero()
-        t1 = time.perf_counter()
-        shear_building_one_call(ops, bld, r0.accel, r0.dt)
-        t_os.append(time.perf_counter() - t1)
-    peer = float(np.mean(t_os))
-
-    warm_import, warm_first = cold_start(os.environ.get("NUMBA_CACHE_DIR", str(ROOT / ".numba-bench")))
-    with tempfile.TemporaryDirectory() as empty:
-        cold_import, cold_first = cold_start(empty)
-
+    cold = tm.cold_start(COLD)
     text = f"""## bench_propagation
 
-{args.samples} posterior draws x {len(recs)} bundled records ({', '.join(names)}; {steps} record steps
-in all) on the 5-story example (`five_story`, {bld.isolator.law} isolators), scale 1, local executor
-(Numba prange, {numba.get_num_threads()} threads), default chunk size.
+5-story example (`five_story`, {bld.isolator.law} isolators) under {len(recs)} bundled records
+({', '.join(names)}; {steps} record steps in all), scale 1.
+
+**Per core** (both single-threaded; {per_record} draws per record, all equal to the building's own
+isolator parameters, so both sides do the same analyses and every peak isolator displacement is
+asserted equal to openseespy's, <= {TOLERANCE:g}; median of {repeat} interleaved runs after one
+warm-up each; openseespy's model building, `ops.wipe()` and reading its recorder file outside its
+timer):
+
+| record | steps | openseespy per analysis | rrfrei per analysis | ratio | max rel. diff of peak |
+|---|---:|---:|---:|---:|---:|
+{chr(10).join(rows)}
+| **one analysis of every record** | {steps} | {tm.fmt(peer_sum)} | {tm.fmt(ours_sum)} | **{ratio:.0f}x** | |
+
+**Multi-core throughput** ({samples} posterior draws x {len(recs)} records, draws perturbed 10 %
+lognormally around the building's parameters, local executor, Numba `prange` on
+{t_batch.threads} threads, default chunk size, one timed run):
 
 | quantity | value |
 |---|---|
 | analyses | {n_runs} ({failed} did not converge) |
-| wall time, whole batch | {wall:.1f} s (target <= 60 s) |
-| analyses per second | {n_runs / wall:.1f} |
-| time steps per second (all runs) | {args.samples * steps / wall:.3g} |
-| ours, per analysis (wall / analyses) | {1e3 * ours:.2f} ms |
-| openseespy, per analysis (one `analyze` call, mean of {len(recs)} records) | {1e3 * peer:.1f} ms |
-| **speed-up vs openseespy** | **{peer / ours:.0f}x** (target >= 50x) |
-| cold start, warm Numba cache: import / first call | {warm_import:.2f} s / {warm_first:.2f} s |
-| cold start, empty Numba cache: import / first call | {cold_import:.2f} s / {cold_first:.2f} s |
-
-The openseespy time is single-threaded and ours uses every core, as each would be used; per core the
-ratio is {peer / ours / numba.get_num_threads():.0f}x.
+| wall time, whole batch | {t_batch.median:.1f} s (target <= 60 s) |
+| analyses per second | {rate:.1f} |
+| time steps per second (all runs) | {samples * steps / t_batch.median:.3g} |
+| cold start (fresh interpreter, temporary `NUMBA_CACHE_DIR`): import + first call | {cold.describe()} |
 """
-    print(text)
-    write_section("bench_propagation", text)
+    report("bench_propagation", text, quick=args.quick)
 
 
 if __name__ == "__main__":
