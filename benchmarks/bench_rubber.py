@@ -1,11 +1,19 @@
-"""bench_rubber: one protocol-1 evaluation of the PRF model (case A) against scipy Radau (rtol 1e-6)
-in the same run, at the accuracy max|P - P_ref| / max|P_ref| <= 1e-4 (P_ref: Radau rtol 1e-10);
-cold start; and a full 11-parameter CMA-ES fit with restarts (2 processes, one per core).
+"""bench_rubber: one protocol-1 evaluation of the PRF model (case A) against scipy Radau at the SAME
+achieved error, per core; cold start; and a full 11-parameter CMA-ES fit with restarts (multi-core:
+2 processes, one per core).
+
+The peer's tolerance is not copied from ours (a nominal rtol means different accuracy in two
+integrators: Radau at rtol 1e-6 reaches 2e-7, ours 6e-5).  Both are measured against a reference
+(Radau rtol 1e-10) as ``max|P - P_ref| / max|P_ref|``; Radau's rtol is then tightened from ~2e-3
+in quarter decades to the loosest value whose error is <= ours, and that Radau is timed against
+ours: both single-threaded, warm-up excluded, the same interleaved repeats, medians, and the two
+stress histories asserted to agree in the same run.
 
 ``python benchmarks/bench_rubber.py --multirate`` instead times the CLI fit of the seeded synthetic
 12-test acrylic set (3 stretch rates x 4 maximum stretches, load-unload, 1 % noise, kPa CSVs) with
 ``--bounds auto`` (issue 16.3: at most 10 minutes on 2 cores) and compares the recovered identifiable
-combinations with the truth (section ``bench_rubber_multirate``)."""
+combinations with the truth (section ``bench_rubber_multirate``).  ``--quick``: smoke run (one
+tolerance, short repeats, a tiny fit; RESULTS.md unchanged)."""
 
 from __future__ import annotations
 
@@ -15,16 +23,18 @@ import time
 from multiprocessing import get_context
 from pathlib import Path
 
-import numpy as np
-from scipy.integrate import solve_ivp
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
 
-sys.path.insert(0, str(Path(__file__).parent))
-from _results import write_section  # noqa: E402
+import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
+import numpy as np  # noqa: E402
+from _results import report  # noqa: E402
+from scipy.integrate import solve_ivp  # noqa: E402
 
-t_import = time.perf_counter()
-import rubber  # noqa: E402, F401  (timed: cold import)
 from rubber import PRESETS, fit, protocol1, simulate  # noqa: E402
 from rubber.study import synthetic_test  # noqa: E402
+
+RADAU_RTOLS = 10.0 ** -np.arange(8.0, 2.74, -0.25)  # 1e-8 ... ~1.8e-3, tight to loose
 
 
 def radau(p, t, lam, rtol, atol=1e-12):
@@ -54,8 +64,9 @@ def radau(p, t, lam, rtol, atol=1e-12):
     u = np.zeros((2, t.size))
     y0 = [0.0, 0.0]
     for a, b in zip(kinks[:-1], kinks[1:]):
-        sol = solve_ivp(rhs, (t[a], t[b]), y0, method="Radau", rtol=rtol, atol=atol, t_eval=t[a:b + 1],
-                        args=(a, b))
+        with np.errstate(over="ignore"):  # a rejected trial step at a loose rtol may overflow
+            sol = solve_ivp(rhs, (t[a], t[b]), y0, method="Radau", rtol=rtol, atol=atol, t_eval=t[a:b + 1],
+                            args=(a, b))
         u[:, a:b + 1] = sol.y
         y0 = list(sol.y[:, -1])
     x = lam**2 + 2 / lam - 3
@@ -66,52 +77,79 @@ def radau(p, t, lam, rtol, atol=1e-12):
     return p_out
 
 
-def best(fn, n):
-    ts = []
-    for _ in range(n):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return min(ts)
+def rel_err(p: np.ndarray, ref: np.ndarray) -> float:
+    """max|P - P_ref| / max|P_ref|."""
+    return float(np.max(np.abs(p - ref)) / np.max(np.abs(ref)))
 
 
-def main() -> None:
+def matched_radau(p, t, lam, ref, target: float) -> tuple[float, float, list]:
+    """Loosest Radau rtol (atol = 1e-3 rtol) whose error against ``ref`` is <= ``target``.
+
+    Scans :data:`RADAU_RTOLS` from loose to tight and stops at the first that reaches ``target``.
+    Returns ``(rtol, its error, [(rtol, error), ...] scanned)``.
+    """
+    scanned = []
+    for rtol in RADAU_RTOLS[::-1]:
+        err = rel_err(radau(p, t, lam, rtol, 1e-3 * rtol), ref)
+        scanned.append((float(rtol), err))
+        if err <= target:
+            return float(rtol), err, scanned
+    raise SystemExit(f"Radau misses the target error {target:.2g} even at rtol {RADAU_RTOLS[0]:g}")
+
+
+COLD = tm.COLD_PRELUDE + """
+import rubber
+t1 = time.perf_counter()
+t, lam = rubber.protocol1()
+rubber.simulate(rubber.PRESETS["A"], t, lam)
+print(json.dumps({"import": t1 - _t0, "first": time.perf_counter() - t1}))
+"""
+
+
+def main(quick: bool) -> None:
     t, lam = protocol1()
     p = PRESETS["A"]
-    t0 = time.perf_counter()
-    simulate(p, t, lam)
-    cold = time.perf_counter() - t_import
-    first = time.perf_counter() - t0
-    ref = radau(p, t, lam, 1e-10)
+    ref = radau(p, t, lam, 1e-8 if quick else 1e-10, 1e-12)
+    repeat = 2 if quick else 7
     rows = []
-    for rtol in (1e-6, 1e-7):
-        got = simulate(p, t, lam, rtol=rtol).nominal
-        err = float(np.max(np.abs(got - ref)) / np.max(np.abs(ref)))
-        rows.append((rtol, err, best(lambda r=rtol: simulate(p, t, lam, rtol=r), 30)))
-    t_radau = best(lambda: radau(p, t, lam, 1e-6, 1e-9), 3)
-    err_radau = float(np.max(np.abs(radau(p, t, lam, 1e-6, 1e-9) - ref)) / np.max(np.abs(ref)))
+    for rtol in (1e-6,) if quick else (1e-6, 1e-7):
+        err = rel_err(simulate(p, t, lam, rtol=rtol).nominal, ref)
+        r_rtol, r_err, scanned = matched_radau(p, t, lam, ref, err)
+        ours = tm.Side("rrfrei", lambda _s, rtol=rtol: simulate(p, t, lam, rtol=rtol).nominal)
+        peer = tm.Side("Radau", lambda _s, r=r_rtol: radau(p, t, lam, r, 1e-3 * r))
+        c = tm.compare(ours, peer, repeat=repeat, agree=rel_err, tolerance=2.0 * (err + r_err),
+                       what=f"rubber rtol {rtol:g}")
+        rows.append((rtol, err, r_rtol, r_err, c))
+        print(f"ours rtol {rtol:g}: err {err:.1e}, {tm.fmt(c.ours.median)}; Radau rtol {r_rtol:.2g}: "
+              f"err {r_err:.1e}, {tm.fmt(c.peer.median)}; {c.ratio:.0f}x; scanned "
+              + ", ".join(f"{a:.1e}->{b:.1e}" for a, b in scanned), flush=True)
+    cold = tm.cold_start(COLD)
 
     test = synthetic_test(p, "p1")
+    restarts, evals = (1, 200) if quick else (2, 4000)
     with get_context("fork").Pool(2) as pool:
         t0 = time.perf_counter()
-        r = fit(test, seed=0, restarts=2, max_evals=4000, pool=pool)
+        r = fit(test, seed=0, restarts=restarts, max_evals=evals, pool=pool)
         t_fit = time.perf_counter() - t0
 
     md = ["## bench_rubber", "",
-          "One protocol-1 evaluation (case A preset, 253 samples, 23.7 s of history).", "",
-          "| method | max rel. error vs Radau 1e-10 | time | speed-up vs Radau 1e-6 |", "|---|---|---|---|",
-          f"| scipy Radau rtol 1e-6, atol 1e-9 (peer) | {err_radau:.1e} | {t_radau * 1e3:.1f} ms | 1 |"]
-    for rtol, err, tm in rows:
-        md.append(f"| rubber.simulate rtol {rtol:g} (TR-BDF2, Numba) | {err:.1e} | {tm * 1e3:.2f} ms | "
-                  f"{t_radau / tm:.0f}x |")
-    md += ["", f"Cold start (import rubber + first simulate, Numba cache warm): {cold:.2f} s "
-           f"(first call {first:.2f} s).", "",
-           f"Full fit (11 free parameters, CMA-ES popsize 16, 2 restarts x 4000 evaluations on 2 processes, "
-           f"then least-squares polish and Fisher information): {t_fit:.1f} s, {r.evaluations} evaluations, "
-           f"f = {r.f_total:.2e} (noise-free case-A protocol-1 data)."]
-    text = "\n".join(md)
-    print(text)
-    write_section("bench_rubber", text)
+          "One protocol-1 evaluation (case A preset, 253 samples, 23.7 s of history). **Per core at the "
+          "same achieved error**: error = max|P - P_ref| / max|P_ref| against Radau rtol 1e-10; the "
+          "peer is scipy Radau (atol = 1e-3 rtol) at the loosest rtol, in quarter decades, whose error "
+          f"is <= ours. Both single-threaded, median of {repeat} interleaved runs after one warm-up "
+          "each; the two stress histories agree within the sum of their errors (asserted).", "",
+          "| rrfrei (TR-BDF2, Numba) | its error | time, 1 thread | scipy Radau | its error "
+          "| time, 1 thread | ratio per core |", "|---|---:|---:|---|---:|---:|---:|"]
+    for rtol, err, r_rtol, r_err, c in rows:
+        md.append(f"| rtol {rtol:g} | {err:.1e} | {tm.fmt(c.ours.median)} | rtol {r_rtol:.2g} | {r_err:.1e} "
+                  f"| {tm.fmt(c.peer.median)} | **{c.ratio:.0f}x** |")
+    md += ["", f"Cold start (fresh interpreter: import rubber + first simulate; temporary "
+           f"`NUMBA_CACHE_DIR`): {cold.describe()}.", "",
+           f"Full fit, **multi-core** (11 free parameters, CMA-ES popsize 16, {restarts} restart(s) x "
+           f"{evals} "
+           f"evaluations on 2 processes, then least-squares polish and Fisher information): {t_fit:.1f} s, "
+           f"{r.evaluations} evaluations, f = {r.f_total:.2e} (noise-free case-A protocol-1 data)."]
+    report("bench_rubber", "\n".join(md), quick=quick)
 
 
 def multirate() -> None:
@@ -152,10 +190,11 @@ def multirate() -> None:
     for n, v in truth.items():
         g = doc["combinations"][n]
         md.append(f"| {n} | {v:.4g} | {g:.4g} | {abs(g / v - 1):.1%} |")
-    text = "\n".join(md)
-    print(text)
-    write_section("bench_rubber_multirate", text)
+    report("bench_rubber_multirate", "\n".join(md), quick=False)
 
 
 if __name__ == "__main__":
-    multirate() if "--multirate" in sys.argv[1:] else main()
+    _ap = tm.parser(__doc__)
+    _ap.add_argument("--multirate", action="store_true", help="time the 12-test acrylic CLI fit instead")
+    _args = _ap.parse_args()
+    multirate() if _args.multirate else main(_args.quick)
