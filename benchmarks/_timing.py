@@ -57,6 +57,7 @@ __all__ = [
     "Timing",
     "cold_start",
     "compare",
+    "fresh_interpreter",
     "cores",
     "fmt",
     "measure",
@@ -317,7 +318,9 @@ def _cache_files(folder: Path) -> set[str]:
     return {str(p.relative_to(folder)) for p in folder.rglob("*") if p.suffix in (".nbi", ".nbc", ".py")}
 
 
-def _child(code: str, cache: Path) -> dict[str, float]:
+def fresh_interpreter(code: str, cache: Path) -> dict:
+    """Run ``code`` in a fresh interpreter with ``NUMBA_CACHE_DIR=cache`` (the repository first on
+    ``PYTHONPATH`` and as working directory); return the JSON object of its last stdout line."""
     env = {k: v for k, v in os.environ.items() if k != "_RRFREI_NUMBA_CACHE"}
     env["NUMBA_CACHE_DIR"] = str(cache)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
@@ -338,9 +341,9 @@ def cold_start(code: str) -> ColdStart:
     """
     with tempfile.TemporaryDirectory(prefix="rrfrei-cold-") as d:
         cache = Path(d)
-        cold = _child(code, cache)
+        cold = fresh_interpreter(code, cache)
         before = _cache_files(cache)
-        warm = _child(code, cache)
+        warm = fresh_interpreter(code, cache)
         new = _cache_files(cache) - before
     notes = () if not new else (f"the warm run still wrote {len(new)} cache files, e.g. {sorted(new)[:3]}",)
     return ColdStart(cold, warm, len(new), notes)

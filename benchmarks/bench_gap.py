@@ -5,29 +5,31 @@ protocols 2-4 held out, 200 draws per fit.  "cold" is a fresh process with an em
 (import + compilation + run); "warm" a second run in the same process.  Reference: one baseline
 ``rrfrei.calibrate`` (CMA-ES optimum + 300 emcee steps) in the same process, the cost unit of the
 calibration workflow; "resumed": a rerun whose fits all come from a checkpoint folder (scoring
-only).  Target (issue 7): a whole diagnosis under 2 minutes on 2 cores.
+only).  Target (issue 7): a whole diagnosis under 2 minutes on 2 cores.  There is no peer, so
+there is no ratio; every figure is multi-core (the fits use every Numba thread).
 
-Run: ``python benchmarks/bench_gap.py``.
+Run: ``python benchmarks/bench_gap.py [--quick]`` (``--quick``: plasticity only, RESULTS.md unchanged).
 """
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
 import sys
 import tempfile
 import time
 import warnings
+from pathlib import Path
 
-from _results import write_section
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
+from _results import report  # noqa: E402
 
 CHILD = r"""
 import json, sys, tempfile, time, warnings
 t0 = time.perf_counter()
 import rrfrei
 from rrfrei.gap import diagnose_gap
-law = sys.argv[1]
+law = {law!r}
 tests = [rrfrei.load_test(f"protocol{k}") for k in (1, 2, 3, 4)]
 t1 = time.perf_counter()
 rep = diagnose_gap(tests[0], law, holdout=tests[1:], progress=False)
@@ -49,31 +51,31 @@ print(json.dumps({"import": t1 - t0, "cold": t2 - t0, "warm": t3 - t2, "calibrat
 
 
 def run(law: str) -> dict:
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        out = subprocess.run([sys.executable, "-c", CHILD, law], env=env, capture_output=True, text=True,
-                             check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    """The child in a fresh interpreter with an empty temporary Numba cache."""
+    with tempfile.TemporaryDirectory(prefix="rrfrei-gap-") as cache:
+        return tm.fresh_interpreter(CHILD.replace("{law!r}", repr(law)), Path(cache))
 
 
 def main() -> None:
+    args = tm.parser(__doc__).parse_args()
     warnings.simplefilter("ignore")
     rows = []
-    for law in ("plasticity", "bouc_wen"):
+    for law in ("plasticity",) if args.quick else ("plasticity", "bouc_wen"):
         t = time.perf_counter()
         r = run(law)
         print(law, r, f"{time.perf_counter() - t:.0f} s", flush=True)
         rows.append((law, r))
     lines = [
         "Whole gap diagnosis of the bundled synthetic protocol 1 (2401 samples), six effects, "
-        "protocols 2-4 held out, 200 draws per fit. Cold = fresh process, empty Numba cache.", "",
+        "protocols 2-4 held out, 200 draws per fit. Cold = fresh process, empty temporary Numba cache. "
+        "No peer, so no ratio; every time is multi-core (the fits use every Numba thread).", "",
         "| law | cold (import + compile + run) [s] | warm run [s] | resumed from checkpoint [s] | "
         "one calibrate (300 steps) [s] | warm / calibrate | diagnosis |", "|---|---|---|---|---|---|---|"]
     for law, r in rows:
         lines.append(f"| {law} | {r['cold']:.1f} | {r['warm']:.1f} | {r['resumed']:.1f} | "
                      f"{r['calibrate']:.1f} | {r['warm'] / r['calibrate']:.2f} | {r['diagnosis']} |")
     lines += ["", "Target: under 120 s for a whole diagnosis on 2 cores (warm)."]
-    write_section("bench_gap", "\n".join(lines))
+    report("bench_gap", "\n".join(lines), quick=args.quick)
 
 
 if __name__ == "__main__":
