@@ -256,7 +256,8 @@ def measure(side: Side, *, repeat: int, warmup: int = 1,
 
 
 def compare(ours: Side, peer: Side, *, repeat: int, agree: Callable[[Any, Any], float],
-            tolerance: float, warmup: int = 1, what: str = "") -> Comparison:
+            tolerance: float, warmup: int = 1, what: str = "",
+            clock: Callable[[], float] = time.perf_counter) -> Comparison:
     """Per-core comparison: both sides single-threaded, interleaved, medians, agreement asserted.
 
     Parameters
@@ -274,6 +275,8 @@ def compare(ours: Side, peer: Side, *, repeat: int, agree: Callable[[Any, Any], 
         Untimed runs per side before timing (the same for both).
     what
         Name of the benchmark case, for the error message.
+    clock
+        The timer (``time.perf_counter``).
 
     Returns
     -------
@@ -284,13 +287,13 @@ def compare(ours: Side, peer: Side, *, repeat: int, agree: Callable[[Any, Any], 
     with single_thread() as n:
         out_o = out_p = None
         for _ in range(warmup):
-            _, out_o = ours.once()
-            _, out_p = peer.once()
+            _, out_o = ours.once(clock)
+            _, out_p = peer.once(clock)
         t_o, t_p = [], []
         for _ in range(repeat):
-            s, out_o = ours.once()
+            s, out_o = ours.once(clock)
             t_o.append(s)
-            s, out_p = peer.once()
+            s, out_p = peer.once(clock)
             t_p.append(s)
     disc = float(agree(out_o, out_p))
     if not disc <= tolerance:
