@@ -5,6 +5,7 @@ Each script owns the block between ``<!-- NAME:start -->`` and ``<!-- NAME:end -
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import re
@@ -12,6 +13,7 @@ import time
 from pathlib import Path
 
 RESULTS = Path(__file__).with_name("RESULTS.md")
+HEADLINE = Path(__file__).with_name("headline.json")  # the figures README's speed table quotes
 HEADER = (
     "# Benchmark results\n\n"
     "Every ratio is measured against the peer (openseespy, NumPy, scipy) in the same run on the "
@@ -49,10 +51,20 @@ def write_section(name: str, markdown: str) -> None:
     RESULTS.write_text(text)
 
 
-def report(name: str, markdown: str, *, quick: bool) -> None:
-    """Print ``markdown``; write it as section ``name`` unless this is a ``--quick`` smoke run."""
+def write_headline(name: str, figures: dict) -> None:
+    """Replace the entry ``name`` of headline.json (figures in SI units: s, 1/s) with ``figures``."""
+    data = json.loads(HEADLINE.read_text()) if HEADLINE.exists() else {}
+    data[name] = {**figures, "machine": machine()}
+    HEADLINE.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+
+
+def report(name: str, markdown: str, *, quick: bool, headline: dict | None = None) -> None:
+    """Print ``markdown``; unless this is a ``--quick`` smoke run, write it as section ``name`` of
+    RESULTS.md and ``headline`` (the figures README's speed table quotes) to headline.json."""
     print(markdown)
     if quick:
-        print(f"\n(--quick: section {name!r} of {RESULTS.name} left unchanged)")
-    else:
-        write_section(name, markdown)
+        print(f"\n(--quick: section {name!r} of {RESULTS.name} and {HEADLINE.name} left unchanged)")
+        return
+    write_section(name, markdown)
+    if headline is not None:
+        write_headline(name, headline)

@@ -150,9 +150,10 @@ def main() -> None:
     warn = "; ".join(f"seed {s}: {w}" for s, _, _, w in runs if w)
     # --- whole commands: 2401-sample bouc_wen test and the dense SPC1 record ------------------
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg())  # before the commands: 1, 5, 15 min
-    cmd_rows = []
+    cmd_rows, cmd_walls = [], []
     if not args.quick:
-        cmd_rows.append(command_row("2401-sample bouc_wen (eta = 1, noise 0.1 kN)", bouc_wen_csv(), []))
+        cmd_rows.append(command_row("2401-sample bouc_wen (eta = 1, noise 0.1 kN)", bouc_wen_csv(), [],
+                                    cmd_walls))
         if SPC1.exists():
             cmd_rows.append(command_row("SPC1 (33,028 samples, real CLT connection)", SPC1, [
                 "--disp-col", "Lead Actuator Displacment:mm", "--force-col", "Lead Actuator Force:kN"]))
@@ -209,7 +210,10 @@ after the runs above); load average {load}):
 
 Targets: 2401 samples <= 15 s; SPC1 converged in <= 180 s with posterior.nc <= 10 MB.
 """
-    report("bench_calibration", md, quick=args.quick)
+    head = dict(ours_s=c.ours.per_unit, peer_s=c.peer.per_unit, ratio=c.ratio, multi_rate=rate,
+                threads=t_multi.threads, posterior_median_s=float(np.median(walls)),
+                posterior_worst_s=max(walls), command_s=cmd_walls[0] if cmd_walls else None)
+    report("bench_calibration", md, quick=args.quick, headline=head)
 
 
 def bouc_wen_csv() -> Path:
@@ -227,7 +231,7 @@ def bouc_wen_csv() -> Path:
     return path
 
 
-def command_row(label: str, csv: Path, extra: list[str]) -> str:
+def command_row(label: str, csv: Path, extra: list[str], walls: list | None = None) -> str:
     """Run the command in a fresh process on ``csv`` and return its table row."""
     out = Path(tempfile.mkdtemp(prefix="bench_cal_out_"))
     t0 = time.perf_counter()
@@ -235,6 +239,8 @@ def command_row(label: str, csv: Path, extra: list[str]) -> str:
     run = subprocess.run([*CLI, str(csv), "--law", "bouc_wen", "--out", str(out), "--quiet", *extra],
                          capture_output=True, text=True, cwd=HERE.parent, env=env)
     wall = time.perf_counter() - t0
+    if walls is not None and run.returncode == 0:
+        walls.append(wall)
     print(f"{label}: {wall:.1f} s, exit {run.returncode}\n{run.stderr[-1500:]}", flush=True)
     if run.returncode != 0:
         return f"| {label} | {wall:.1f} | failed (exit {run.returncode}) |" + " |" * 9

@@ -95,13 +95,14 @@ def main() -> None:
     repeat = 2 if args.quick else 7
     u = history(2000 if args.quick else N)
     labels = list(PARAMS)[:2] if args.quick else list(PARAMS)
-    rows = []
+    rows, head = [], {}
     for label in labels:
         p = PARAMS[label]
         law = label.split(" ")[0]
         ours = tm.Side("rrfrei", lambda _s, law=law, p=p: rrfrei.simulate_force(law, p, u))
         c = tm.compare(ours, opensees_side(ops, law, p, u), repeat=repeat, agree=max_rel,
                        tolerance=TOLERANCE, what=label)
+        head[label] = dict(ours_s=c.ours.per_unit, peer_s=c.peer.per_unit, ratio=c.ratio)
         ps = ", ".join(f"{k}={v:g}" for k, v in p.items())
         rows.append(f"| {label} | {ps} | {tm.fmt(c.peer.median)} | {tm.fmt(c.ours.median)} "
                     f"| **{c.ratio:.0f}x** | {c.discrepancy:.1e} |")
@@ -127,7 +128,8 @@ def main() -> None:
         f"(compilation), warm cache (filled by that run) {cold.warm['import']:.2f} s + "
         f"{cold.warm['first']:.2f} s." + "".join(f" Note: {n}." for n in cold.notes),
     ]
-    report("bench_laws", "\n".join(lines), quick=args.quick)
+    head["steps"] = int(u.size)
+    report("bench_laws", "\n".join(lines), quick=args.quick, headline=head)
 
 
 if __name__ == "__main__":

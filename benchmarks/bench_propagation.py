@@ -175,7 +175,9 @@ lognormally around the building's parameters, local executor, Numba `prange` on
 | time steps per second (all runs) | {samples * steps / t_batch.median:.3g} |
 | cold start (fresh interpreter, temporary `NUMBA_CACHE_DIR`): import + first call | {cold.describe()} |
 """
-    report("bench_propagation", text, quick=args.quick)
+    head = dict(ours_s=ours_sum, peer_s=peer_sum, ratio=ratio, records=len(recs), samples=samples,
+                batch_s=t_batch.median, batch_rate=rate, threads=t_batch.threads)
+    report("bench_propagation", text, quick=args.quick, headline=head)
 
 
 if __name__ == "__main__":

@@ -97,7 +97,7 @@ def main() -> None:
     args = tm.parser(__doc__).parse_args()
     repeat = 2 if args.quick else 7
     names = ("elcentro",) if args.quick else ("elcentro", "chichi")
-    rows, multi = [], []
+    rows, multi, head = [], [], {}
     for name in names:
         rec = gm.load(name)
         ours = tm.Side("rrfrei", lambda _s, rec=rec: gm.response_spectrum(rec, PERIODS, ZETA).sd)
@@ -106,6 +106,8 @@ def main() -> None:
         rows.append(f"| {name} | {rec.npts} | {tm.fmt(c.ours.median)} | {tm.fmt(c.peer.median)} "
                     f"| **{c.ratio:.0f}x** | {c.discrepancy:.1e} |")
         rate, t_multi, _ = tm.throughput(ours, repeat=repeat)
+        head[name] = dict(ours_s=c.ours.per_unit, peer_s=c.peer.per_unit, ratio=c.ratio,
+                          multi_s=t_multi.per_unit, threads=t_multi.threads)
         multi.append(f"| {name} | {t_multi.threads} | {tm.fmt(t_multi.median)} | {rate:.0f} |")
         print(rows[-1], multi[-1], flush=True)
     lsim = ""
@@ -114,6 +116,7 @@ def main() -> None:
         c = tm.compare(tm.Side("rrfrei", lambda _s: gm.response_spectrum(rec, PERIODS, ZETA).sd),
                        tm.Side("scipy lsim", lambda _s: lsim_sd(rec)), repeat=1, agree=max_rel,
                        tolerance=TOLERANCE, what="elcentro (lsim)")
+        head["lsim"] = dict(ours_s=c.ours.per_unit, peer_s=c.peer.per_unit, ratio=c.ratio)
         lsim = (f"\n\nSecondary, a general-purpose peer: scipy `lsim` one period at a time on elcentro, "
                 f"{tm.fmt(c.peer.median)} against {tm.fmt(c.ours.median)} ({c.ratio:.0f}x per core, one "
                 f"timed run each after one warm-up; Sd agrees to {c.discrepancy:.1e}). It is not the "
@@ -135,7 +138,7 @@ def main() -> None:
         f"first call (compilation); warm cache (filled by that run) {cold.warm['import']:.2f} s + "
         f"{cold.warm['first']:.2f} s." + "".join(f" Note: {n}." for n in cold.notes)
     )
-    report("spectra", md, quick=args.quick)
+    report("spectra", md, quick=args.quick, headline=head)
 
 
 if __name__ == "__main__":

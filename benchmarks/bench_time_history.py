@@ -143,7 +143,9 @@ temporary `NUMBA_CACHE_DIR`): empty cache {cold.cold['import']:.2f} s import + {
 first call (compilation); warm cache (filled by that run) {cold.warm['import']:.2f} s +
 {cold.warm['first']:.2f} s.{"".join(f" Note: {n}." for n in cold.notes)}
 """
-    report("bench_time_history", md, quick=args.quick)
+    head = dict(ours_s=c.ours.per_unit, peer_s=c.peer.per_unit, ratio=c.ratio, steps=n_steps,
+                batch_rate_1=rates[1], batch_rate_multi=rates[multi], threads=multi)
+    report("bench_time_history", md, quick=args.quick, headline=head)
 
 
 if __name__ == "__main__":

@@ -137,3 +137,24 @@ def test_cold_start_says_when_the_warm_run_did_not_read_the_cache():
     assert c.new_in_warm == 1
     assert "warm run still wrote 1 cache files" in c.notes[0]
     assert "note:" in c.describe()
+
+
+def _cells(markdown: str, what: str) -> list[str]:
+    line = next(ln for ln in markdown.splitlines() if ln.startswith(f"| {what}"))
+    return [c.strip() for c in line.strip("|").split("|")]
+
+
+def test_readme_table_keeps_per_core_and_multi_core_figures_apart():
+    import readme_table
+
+    h = {"bench_time_history": {"ours_s": 0.004, "peer_s": 0.25, "ratio": 62.5, "steps": 8000,
+                                "batch_rate_1": 200.0, "batch_rate_multi": 330.0, "threads": 2},
+         "bench_calibration": {"ours_s": 1.5e-4, "peer_s": 0.015, "ratio": 100.0, "multi_rate": 12000.0,
+                               "threads": 2, "posterior_median_s": 10.0, "command_s": 20.0}}
+    md = readme_table.table(h)
+    what, ours, peer, ratio, multi, _target = _cells(md, "5-story building")
+    assert (ours, ratio) == ("4.00 ms", "**62x**")
+    assert "250 ms" in peer and "330 analyses/s on 2 threads" in multi
+    what, ours, peer, ratio, multi, _target = _cells(md, "full bouc_wen posterior")
+    assert (ours, peer, ratio) == ("", "", "") and multi == "10.0 s on 2 threads"  # multi-core only
+    assert _cells(md, "polyurethane model")[3] == readme_table.MISSING  # never a stale number
