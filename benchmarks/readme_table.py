@@ -71,7 +71,9 @@ def table(h: dict) -> str:
         f"on {prop.get('threads', 'all')} threads)" if prop else MISSING, ">= 50x; batch <= 60 s")
     ec = sp.get("elcentro", {})
     row("response spectrum, 100 periods, El Centro", ms(ec.get("ours_s")),
-        f"the same recurrence vectorised in NumPy {ms(ec.get('peer_s'))}", x(ec.get("ratio")),
+        f"the same recurrence vectorised in NumPy {ms(ec.get('peer_s'))}; as a C IIR filter "
+        f"(scipy `lfilter`) {ms(ec.get('lfilter_s'))}",
+        f"{x(ec.get('ratio'))}; {MISSING if not ec else format(ec['lfilter_ratio'], '.1f') + 'x'}",
         f"{ms(ec.get('multi_s'))} on {ec.get('threads', 'all')} threads" if ec else MISSING, "")
     r6 = rub.get("rtol 1e-06", {})
     row(f"polyurethane model, one protocol-1 evaluation (error {r6.get('ours_err', float('nan')):.0e})",
