@@ -66,6 +66,7 @@ def main() -> None:
         print(law, r, f"{time.perf_counter() - t:.0f} s", flush=True)
         rows.append((law, r))
     lines = [
+        "## bench_gap", "",
         "Whole gap diagnosis of the bundled synthetic protocol 1 (2401 samples), six effects, "
         "protocols 2-4 held out, 200 draws per fit. Cold = fresh process, empty temporary Numba cache. "
         "No peer, so no ratio; every time is multi-core (the fits use every Numba thread).", "",

@@ -109,6 +109,8 @@ def main() -> None:
         print(rows[-1], flush=True)
     cold = tm.cold_start(COLD.format(params=PARAMS["bouc_wen (eta=1)"]))
     lines = [
+        "## bench_laws (isolator laws against openseespy)",
+        "",
         f"Each law over the same {u.size:,}-step history (sine cycles of 200 steps, amplitude "
         "2 -> 40 mm). **Per core**, both single-threaded, median of "
         f"{repeat} interleaved runs after one warm-up each. openseespy: one `analyze({u.size})` "

@@ -117,7 +117,8 @@ def main() -> None:
     multi = max(rates)
 
     cold = tm.cold_start(COLD)
-    md = f"""
+    md = f"""## bench_time_history (shear building against openseespy)
+
 Five-story example building on `bouc_wen` (17 bearings, length_scale 3), {n_steps} Newmark steps of
 Landers/Lucerne (dt = {rec.dt:g} s), Newton + NormDispIncr 1e-12, average {iters:.2f} Newton
 iterations per step. **Per core**: both single-threaded, median of {repeat} interleaved runs after
