@@ -30,9 +30,12 @@ from __future__ import annotations
 
 import os
 
-# one thread for BLAS/OpenMP pools (NumPy peers, LAPACK inside OpenSees): must precede numpy
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+# one thread for BLAS/OpenMP pools (NumPy peers, LAPACK inside OpenSees): must precede numpy.
+# Numba's own thread count does not follow these (it reads NUMBA_NUM_THREADS).
+PINNED = tuple(v for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+               if v not in os.environ)  # the ones this module sets (user settings are kept)
+for _var in PINNED:
+    os.environ[_var] = "1"
 
 import argparse  # noqa: E402
 import contextlib  # noqa: E402
@@ -65,6 +68,7 @@ __all__ = [
     "single_thread",
     "throughput",
     "threads",
+    "user_env",
 ]
 
 
@@ -321,12 +325,24 @@ def _cache_files(folder: Path) -> set[str]:
     return {str(p.relative_to(folder)) for p in folder.rglob("*") if p.suffix in (".nbi", ".nbc", ".py")}
 
 
+def user_env() -> dict[str, str]:
+    """This process's environment as the user set it: without the BLAS pins of this module and
+    without ``rrfrei._jit_cache``'s own ``NUMBA_CACHE_DIR`` (so a child chooses its cache itself),
+    the repository first on ``PYTHONPATH``."""
+    env = dict(os.environ)
+    for var in PINNED:
+        env.pop(var, None)
+    if env.pop("_RRFREI_NUMBA_CACHE", None) is not None:
+        env.pop("NUMBA_CACHE_DIR", None)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return env
+
+
 def fresh_interpreter(code: str, cache: Path) -> dict:
     """Run ``code`` in a fresh interpreter with ``NUMBA_CACHE_DIR=cache`` (the repository first on
     ``PYTHONPATH`` and as working directory); return the JSON object of its last stdout line."""
-    env = {k: v for k, v in os.environ.items() if k != "_RRFREI_NUMBA_CACHE"}
+    env = user_env()
     env["NUMBA_CACHE_DIR"] = str(cache)
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     run = subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True)
     if run.returncode != 0:
         raise RuntimeError(f"cold-start snippet failed (exit {run.returncode}):\n{run.stderr[-3000:]}")

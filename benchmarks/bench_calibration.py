@@ -235,7 +235,7 @@ def command_row(label: str, csv: Path, extra: list[str], walls: list | None = No
     """Run the command in a fresh process on ``csv`` and return its table row."""
     out = Path(tempfile.mkdtemp(prefix="bench_cal_out_"))
     t0 = time.perf_counter()
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(HERE.parent), os.environ.get("PYTHONPATH", "")]))
+    env = tm.user_env()  # as the user runs it: no BLAS pins, the project's own Numba cache
     run = subprocess.run([*CLI, str(csv), "--law", "bouc_wen", "--out", str(out), "--quiet", *extra],
                          capture_output=True, text=True, cwd=HERE.parent, env=env)
     wall = time.perf_counter() - t0

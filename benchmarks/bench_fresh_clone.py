@@ -50,8 +50,8 @@ def clone(dest: Path) -> str:
 
 def timed(label: str, argv: list[str], cwd: Path) -> tuple[str, float, int, float]:
     """Run ``argv`` in ``cwd`` (a fresh process, the clone first on the path): the table row data."""
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("NUMBA_CACHE_DIR", "_RRFREI_NUMBA_CACHE", "PYTHONPATH")}
+    env = tm.user_env()  # as the user runs it: no BLAS pins, the clone's own Numba cache
+    env.pop("NUMBA_CACHE_DIR", None)
     env["PYTHONPATH"] = str(cwd)
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
