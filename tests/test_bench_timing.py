@@ -159,3 +159,20 @@ def test_readme_table_keeps_per_core_and_multi_core_figures_apart():
     assert (ours, peer, ratio) == ("", "", "") and multi == "10.0 s on 2 threads"  # multi-core only
     assert _cells(md, "polyurethane model")[3] == readme_table.MISSING  # never a stale number
     assert readme_table.MISSING in _cells(md, "response spectrum")[3]
+
+
+def test_a_section_is_replaced_in_place_and_the_rules_head_the_file(tmp_path, monkeypatch):
+    import _results
+
+    monkeypatch.setattr(_results, "RESULTS", tmp_path / "RESULTS.md")
+    monkeypatch.setattr(_results, "HEADLINE", tmp_path / "headline.json")
+    (tmp_path / "RESULTS.md").write_text("# old header\n\n<!-- a:start -->\nold a\n<!-- a:end -->\n\n"
+                                         "<!-- b:start -->\nkept b\n<!-- b:end -->\n")
+    _results.report("a", "new a", quick=False, headline={"ratio": 2.0})
+    text = (tmp_path / "RESULTS.md").read_text()
+    assert text.startswith(_results.HEADER) and "old header" not in text
+    assert "new a" in text and "old a" not in text and "kept b" in text
+    assert text.index("new a") < text.index("kept b")  # same place
+    assert '"ratio": 2.0' in (tmp_path / "headline.json").read_text()
+    _results.report("b", "smoke", quick=True)  # a --quick run writes nothing
+    assert "kept b" in (tmp_path / "RESULTS.md").read_text()
