@@ -51,7 +51,7 @@ SPC1 = HERE.parents[1] / "shared" / "data" / "hysteresis" / "clt_connection_tann
 CMD_HEADER = ("| test | wall [s] | stopped by | steps x walkers | max tau | R-hat max | ESS min "
               "| likelihood points | NRMSE | posterior.nc [MB] | chain.h5 [MB] | converged |\n"
               "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---|")
-CLI = [sys.executable, "-c", "import sys; from rrfrei.cli import main; sys.exit(main())", "calibrate"]
+CLI = [sys.executable, "-c", "import sys; from rrfrei.app.cli import main; sys.exit(main())", "calibrate"]
 N_OPS = 20  # openseespy evaluations timed
 SEEDS = (0, 1, 2)
 HEADER = ("| seed | wall [s] | optimum [s] | sampling [s] | steps x walkers | max tau | R-hat max "
