@@ -54,10 +54,7 @@ SPC1 = HERE.parents[1] / "shared" / "data" / "hysteresis" / "clt_connection_tann
 CMD_HEADER = ("| test | wall [s] | stopped by | steps x walkers | max tau | R-hat max | ESS min "
               "| likelihood points | NRMSE | posterior.nc [MB] | chain.h5 [MB] | converged |\n"
               "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---|")
-# the CLI's module moves with the application layer (rrfrei/app/): take whichever exists
-CLI = [sys.executable, "-c",
-       "import sys\ntry:\n    from rrfrei.app.cli import main\nexcept ImportError:\n"
-       "    from rrfrei.cli import main\nsys.exit(main())", "calibrate"]
+CLI = [sys.executable, "-m", "rrfrei.app", "calibrate"]
 WALKERS = 32
 TOLERANCE = 1e-8  # relative difference of the two log-likelihoods
 SEEDS = (0, 1, 2)

@@ -34,9 +34,7 @@ sys.path.insert(0, str(HERE))
 import _timing as tm  # noqa: E402
 from _results import report  # noqa: E402
 
-# the CLI's module moves with the application layer (rrfrei/app/): take whichever exists
-CLI = ("import sys\ntry:\n    from rrfrei.app.cli import main\nexcept ImportError:\n"
-       "    from rrfrei.cli import main\nsys.exit(main())")
+CLI = "import sys\nfrom rrfrei.app.cli import main\nsys.exit(main())"
 
 
 def clone(dest: Path) -> str:

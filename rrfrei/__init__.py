@@ -1,12 +1,19 @@
 """rrfrei: performance-based seismic analysis of buildings on low-cost isolators.
 
-Layers (arrows point down only): CLI (``rrfrei.cli``) -> workflows (``calibrate``,
-``compare``, ``diagnose_gap``, ``structures.propagate``) -> models (frozen dataclasses:
-``LawSpec``, ``ShearTest``, ...) -> Numba kernels (``rrfrei.laws.kernel``).
+This package is the core layer: isolator laws (``rrfrei.laws``), their simulation, test I/O,
+energy, protocols, Bayesian calibration and the sim-to-real gap engine (``rrfrei.gap``).  The
+application on top of everything (CLI, commands, demo, HTML report) is ``rrfrei.app``; the
+layer order, bottom to top, is ``rrfrei._jit_cache`` -> ``ground_motions`` -> rrfrei core ->
+``structures`` | ``rubber`` -> ``rrfrei.app`` (see :mod:`rrfrei.app`, checked by
+``tests/test_layers.py``).  Within the core: workflows (``calibrate``, ``compare``,
+``diagnose_gap``) -> models (frozen dataclasses: ``LawSpec``, ``ShearTest``, ...) -> Numba
+kernels (``rrfrei.laws.kernel``).
 
 Units: kN, m, s, tonnes throughout.
 
-The public names below are imported lazily, so ``import rrfrei`` is cheap.
+The public names below are imported lazily (the table ``_LAZY``, all of them core modules), so
+``import rrfrei`` stays cheap: every package imports ``rrfrei._jit_cache`` first, which runs this
+file, and must not pay for the calibration stack (arviz, emcee) it may not use.
 """
 
 from __future__ import annotations

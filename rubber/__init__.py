@@ -2,8 +2,12 @@
 
 Layers: Numba kernels (``integrate``) -> frozen model dataclasses and ``simulate`` (``prf``) ->
 protocols, test I/O, CMA-ES ``fit``, the cross-protocol study and material cards -> ``python -m rubber``.
-The gap diagnosis (``rubber.gap``: ``RubberModel``, ``rank_effects``) is exported lazily, since it
-imports the ``rrfrei.gap`` engine.
+The gap diagnosis (``rubber.gap``: ``RubberModel``, ``rank_effects``) is exported lazily, for
+start-up speed only: it imports the ``rrfrei.gap`` engine and with it the calibration stack (arviz,
+emcee, about a second), which ``python -m rubber fit`` does not need.
+
+Layer: on the ``rrfrei`` core (errors, budgets, the gap engine), beside ``structures``, below
+``rrfrei.app`` (``tests/test_layers.py``).
 """
 
 import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
@@ -36,7 +40,7 @@ _GAP = ("EFFECTS", "RubberModel", "RubberFit", "RubberGapReport", "augmented_str
 
 def __getattr__(name: str):
     if name in _GAP:
-        from . import gap
+        from . import gap  # deferred for start-up speed (module docstring); same layer, no cycle
 
         return getattr(gap, name)
     raise AttributeError(f"module 'rubber' has no attribute {name!r}")

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from rrfrei.budget import seconds_arg
+from rrfrei.errors import NUMERICAL_ERRORS, is_numerical
 
 DEFAULT_FIT_BUDGET = 1200.0
 """Default wall-clock budget of ``python -m rubber fit`` [s] (a 12-test fit takes 85-99 s)."""
@@ -235,8 +236,6 @@ def _cases_figure(r, tests, path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from rrfrei.errors import NUMERICAL_ERRORS, is_numerical
-
     a = _parser().parse_args(argv)
     try:
         return _run(a)

@@ -3,7 +3,8 @@
 
 Units: MPa, s.  tau conventions: the fit's C1 is for tau = ||dev sigma||_F (Bergstrom's code, Marc as
 used by the study).  Abaqus' Bergstrom-Boyce creep law uses the equivalent (Mises-type) deviatoric
-Kirchhoff stress, so A = C1_mises = C1_frob (2/3)^((C3+1)/2) (exact, prf_model.md section 4).
+Kirchhoff stress, so A = C1_mises = C1_frob (2/3)^((C3+1)/2) (exact,
+``docs/reference/prf_model.md`` section 4).
 """
 
 from __future__ import annotations

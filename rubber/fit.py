@@ -31,6 +31,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rrfrei.budget import TimeBudget
+from rrfrei.budget import progress as _progress
+
 from . import integrate as _k
 from .io import Test
 from .prf import PARAM_NAMES, BBChain, PRFParams, simulate
@@ -538,9 +541,6 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
     if x0 is not None:
         starts[0] = space.x_of(x0)
     import time
-
-    from rrfrei.budget import TimeBudget
-    from rrfrei.budget import progress as _progress
 
     budget = TimeBudget(time_budget, "rubber fit", "--time-budget")
     deadline = None if budget.seconds is None else time.time() + budget.seconds

@@ -4,7 +4,11 @@ Layers: :mod:`structures.newmark` holds the Numba kernels (Newmark + Newton over
 chain, calling ``rrfrei.laws.kernel.step`` for the isolator) and the public verbs
 :func:`time_history` / :func:`time_history_batch`; :mod:`structures.building` the frozen models
 (:class:`ShearBuilding`, :class:`Isolator`) with modal analysis and TOML loading;
-:mod:`structures.energy` the energy balance; :mod:`structures.propagate` posterior propagation.
+:mod:`structures.energy` the energy balance; :mod:`structures.propagate` posterior propagation
+(its inputs, executors, store, response set and plots in modules of those names).
+
+Layer: on top of ``ground_motions`` and the ``rrfrei`` core (laws, simulation, calibration); below
+``rrfrei.app``.  Nothing here imports ``rubber`` or ``rrfrei.app`` (``tests/test_layers.py``).
 
 >>> import structures
 >>> structures.available_buildings()

@@ -25,6 +25,7 @@ import scipy.linalg
 
 from rrfrei.laws import LawSpec
 from rrfrei.laws import get as get_law
+from rrfrei.simulate import simulate_force
 
 DAMPING_KINDS = ("stiffness", "rayleigh")
 
@@ -108,16 +109,12 @@ class Isolator:
 
     def force(self, disp, *, substeps: int = 1) -> np.ndarray:
         """Layer force [kN] along a quasi-static displacement history ``disp`` [m] (prototype)."""
-        from rrfrei.simulate import simulate_force
-
         s = self.length_scale
         f = simulate_force(self.law, self.packed(), np.asarray(disp, dtype=float) / s, substeps=substeps)
         return self.count * s * s * f
 
     def initial_stiffness(self) -> float:
         """Tangent stiffness [kN/m] of the virgin layer at zero displacement."""
-        from rrfrei.simulate import simulate_force
-
         s = self.length_scale
         _, k = simulate_force(self.law, self.packed(), [0.0], return_tangent=True)
         return float(self.count * s * k[0])

@@ -36,6 +36,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rrfrei.calibration.checks import nrmse
+from structures.building import ShearBuilding
+from structures.newmark import ConvergenceError, time_history
 from structures.shake_table import ShakeTableRun
 
 __all__ = ["RunPrediction", "predict_run"]
@@ -194,11 +197,7 @@ def predict_run(
     A draw whose analysis fails (``ConvergenceError`` or a numerical failure) is counted in
     ``n_failed`` and left out of the bands; ValueError if every draw fails.
     """
-    from tqdm.auto import tqdm
-
-    from rrfrei.calibration.checks import nrmse
-    from structures.building import ShearBuilding
-    from structures.newmark import ConvergenceError, time_history
+    from tqdm.auto import tqdm  # deferred, as everywhere: only a run with a bar needs it
 
     if not isinstance(run, ShakeTableRun):
         raise ValueError(f"run must be a ShakeTableRun, got {type(run).__name__}")

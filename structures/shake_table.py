@@ -64,7 +64,10 @@ import numpy as np
 import pandas as pd
 import scipy.signal
 
+from ground_motions import Record
 from rrfrei._inputs import read_toml
+from rrfrei.energy import cycle_metrics
+from rrfrei.io import ShearTest
 
 __all__ = [
     "BNCS_WEIGHTS_KN",
@@ -329,8 +332,6 @@ class ShakeTableRun:
 
     def record(self):
         """The table acceleration as a ``ground_motions.Record`` (to drive a model)."""
-        from ground_motions import Record
-
         return Record(self.name, self.dt, np.asarray(self.table_accel), meta={"source": self.source})
 
     # ---- transformations
@@ -762,8 +763,6 @@ def isolation_test(run: ShakeTableRun, *, name: str | None = None):
     viscous part included); time [s].  ``rrfrei.calibrate``, ``compare`` and ``diagnose_gap``
     take it unchanged; a law calibrated on it is the *layer* law (count 1, length scale 1).
     """
-    from rrfrei.io import ShearTest
-
     return ShearTest(
         name=name or run.name,
         time=np.asarray(run.time) - float(run.time[0]),
@@ -791,8 +790,6 @@ def isolation_metrics(run: ShakeTableRun, *, eps_frac: float = 0.02) -> pd.DataF
     characteristic strength, half the gap between the loading and unloading branches at zero
     displacement: Qd = (F(u = 0, u rising) - F(u = 0, u falling)) / 2, and ``run``.
     """
-    from rrfrei.energy import cycle_metrics
-
     u = run.isolator_disp
     f = run.isolator_force
     df = cycle_metrics(u, f, eps_frac=eps_frac)

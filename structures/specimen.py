@@ -31,6 +31,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from rrfrei.errors import NUMERICAL_ERRORS
+
 __all__ = ["SpecimenWarning", "specimen_checks", "MIN_PERIOD_SHIFT", "MAX_STIFFNESS_RATIO"]
 
 #: Smallest isolated-to-fixed-base period ratio accepted without a warning.
@@ -57,8 +59,6 @@ def specimen_checks(building, params: Mapping[str, float], disp_prototype: float
     A check that cannot be evaluated (the law's local solve fails at these parameters, a
     non-positive secant stiffness) is itself reported, never raised.
     """
-    from rrfrei.errors import NUMERICAL_ERRORS
-
     d = DEFAULT_DISP if disp_prototype is None or not disp_prototype > 0 else float(disp_prototype)
     where = "at the largest tested" if disp_prototype else f"at an assumed {DEFAULT_DISP:g} m"
     out: list[str] = []

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from rrfrei import cli
+from rrfrei.app import cli
 from rrfrei.calibration import ConvergenceWarning, advice, calibrate, elpd_loco, setup_problem
 from rrfrei.calibration.likelihood import DENSE_POINTS, LIKELIHOOD_POINTS, likelihood_points
 from rrfrei.calibration.results import MAX_DRAWS_DENSE

@@ -19,9 +19,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from rrfrei.cli import COMMANDS
+from rrfrei.app.cli import COMMANDS
 
-RRFREI = [sys.executable, "-m", "rrfrei.cli"]
+RRFREI = [sys.executable, "-m", "rrfrei.app"]
 RUBBER = [sys.executable, "-m", "rubber"]
 
 # command name as typed (module names use '_', command names '-')
@@ -196,7 +196,7 @@ def _raiser(kind: str, text: str):
     ],
 )
 def test_a_numerical_failure_exits_1_and_a_user_error_exits_2(monkeypatch, capsys, kind, text, code):
-    from rrfrei import cli
+    from rrfrei.app import cli
 
     parser = cli.build_parser()
     monkeypatch.setattr(cli, "build_parser", lambda: parser)

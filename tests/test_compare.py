@@ -117,8 +117,8 @@ def test_compare_needs_two_calibrations_of_the_same_test(cals):
 
 
 def test_cli_calibrate_and_compare_print_the_documented_json(tmp_path, capsys):
-    """In-process through rrfrei.cli.main (the subprocess behaviour is covered by test_cli.py)."""
-    from rrfrei.cli import main
+    """In-process through rrfrei.app.cli.main (the subprocess behaviour is covered by test_cli.py)."""
+    from rrfrei.app.cli import main
 
     rc = main(["calibrate", "protocol1", "--law", "linear", "--steps", "40", "--walkers", "8",
                "--holdout", "protocol2", "--out", str(tmp_path / "c"), "--json"])

@@ -25,7 +25,7 @@ def quick_demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "report"
     env = {**os.environ, "MPLBACKEND": "Agg"}
     proc = subprocess.run(
-        [sys.executable, "-m", "rrfrei.cli", "demo", "--quick", "--out", str(out)],
+        [sys.executable, "-m", "rrfrei.app", "demo", "--quick", "--out", str(out)],
         capture_output=True, text=True, timeout=900, env=env,
     )
     manifest = json.loads((out / "manifest.json").read_text()) if (out / "manifest.json").exists() else None

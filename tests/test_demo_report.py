@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 from matplotlib.figure import Figure
 
-from rrfrei import demo
-from rrfrei.cli import main
-from rrfrei.report import Report, Section, fmt, slug
+from rrfrei.app import demo
+from rrfrei.app.cli import main
+from rrfrei.app.report import Report, Section, fmt, slug
 
 
 def _figure() -> Figure:
@@ -113,7 +113,7 @@ def _later(ctx, sec):
 
 
 def _missing(ctx, sec):
-    demo._api("rrfrei.no_such_workflow", "run")
+    raise demo.Placeholder("the workflow rrfrei.no_such_workflow does not exist yet")
 
 
 def _silent(ctx, sec):
@@ -146,7 +146,7 @@ def test_a_failing_step_is_shown_in_its_section_and_the_later_steps_still_run(tm
 
 
 def test_rrfrei_demo_exits_nonzero_naming_the_failed_step(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(demo, "STEPS", STEPS[:3])
+    monkeypatch.setattr(demo.steps, "STEPS", STEPS[:3])  # the default steps of run_demo
     code = main(["demo", "--out", str(tmp_path / "rep"), "--quick", "--no-progress"])
     err = capsys.readouterr().err
     assert code == 1

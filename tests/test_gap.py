@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rrfrei import simulate_force
-from rrfrei.cli import main
+from rrfrei.app.cli import main
 from rrfrei.gap import diagnose_gap
 from rrfrei.gap.catalogue import ScreenContext, screen_all
 from rrfrei.gap.diagnose import _monotone_amplitude

@@ -13,8 +13,8 @@ import hashlib
 import numpy as np
 import pytest
 
+from rrfrei.app.cli import main
 from rrfrei.budget import BudgetExceeded, TimeBudget
-from rrfrei.cli import main
 from rrfrei.errors import NumericalFailure
 from rrfrei.gap.diagnose import diagnose
 from rrfrei.gap.model import FitResult, GapModel, IsolatorFit, IsolatorModel, Prediction, _laplace_cov

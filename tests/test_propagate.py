@@ -310,7 +310,7 @@ def test_cli_writes_the_table_and_figures_that_the_api_computes(tmp_path):
     cal = calibrate(load_test("protocol1"), "bouc_wen", steps=20, walkers=32, progress=False, seed=0)
     nc = cal.to_netcdf(tmp_path / "posterior.nc")
     out = tmp_path / "out"
-    argv = [sys.executable, "-m", "rrfrei.cli", "propagate", "--posterior", str(nc),
+    argv = [sys.executable, "-m", "rrfrei.app", "propagate", "--posterior", str(nc),
             "--building", "five_story", "--records", "rinaldi,tabas", "--samples", "6",
             "--scales", "0.5,1,2", "--seed", "3",
             "--out", str(out), "--json", "--no-progress"]

@@ -74,7 +74,7 @@ def test_three_parameter_sets_match_radau_reference_to_1e_4(histories, case, pro
 
 
 def test_mises_convention_equals_frobenius_with_rescaled_c1(histories):
-    """C1_mises = C1_frob (2/3)^((C3+1)/2) exactly (prf_model.md section 4)."""
+    """C1_mises = C1_frob (2/3)^((C3+1)/2) exactly (docs/reference/prf_model.md section 4)."""
     t, lam = histories["p1"]
     p = PRESETS["A"]
     pm = p.replace(C1_B=p.C1_B * (2 / 3) ** ((p.C3_B + 1) / 2), C1_C=p.C1_C * (2 / 3) ** ((p.C3_C + 1) / 2))
@@ -125,7 +125,8 @@ def test_every_loop_dissipates_and_the_energy_balance_closes():
 
 
 def test_case_a_reconstruction_reproduces_the_notes_relaxation_values(histories):
-    """prf_model.md section 8: case A holds 2.09 -> 1.26, 2.90 -> 2.08, 3.46 -> 2.70 MPa (within 0.02)."""
+    """docs/reference/prf_model.md section 8: case A holds 2.09 -> 1.26, 2.90 -> 2.08, 3.46 -> 2.70 MPa
+    (within 0.02)."""
     t, lam = histories["p2"]
     r = simulate(PRESETS["A"], t, lam)
     slope = np.diff(lam) / np.diff(t)

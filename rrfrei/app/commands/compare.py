@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
-from rrfrei.commands.calibrate import add_column_args, add_common, load
+from rrfrei.app.commands.calibrate import add_column_args, add_common, load
+from rrfrei.calibration import ConvergenceWarning, calibrate, compare
+from rrfrei.laws import OPENSEES_LAWS, get
 
 EXAMPLE = """\
 Example:
@@ -39,15 +42,10 @@ def register(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import warnings
-
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from rrfrei.calibration import ConvergenceWarning, calibrate, compare
-    from rrfrei.laws import OPENSEES_LAWS, get
 
     laws = list(OPENSEES_LAWS) if args.laws.strip() == "all" else [
         s.strip() for s in args.laws.split(",") if s.strip()]

@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from rrfrei.gap.validate import validate
+
 EXAMPLE = """\
 Example:
   rrfrei gap-validate --seeds 5 --out gap-validation     # about 10 minutes on 2 cores
@@ -39,8 +41,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from rrfrei.gap.validate import validate
-
     def show(r: dict) -> None:
         print(f"  {r['case']:<12} seed {r['seed']}: {r['diagnosed']}", flush=True)
 

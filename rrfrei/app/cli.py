@@ -1,6 +1,6 @@
-"""Command-line interface: ``rrfrei <command> ...``.
+"""Command-line interface: ``rrfrei <command> ...`` (also ``python -m rrfrei.app``).
 
-Each command lives in ``rrfrei/commands/<name>.py`` and exposes ``register(subparsers)``,
+Each command lives in ``rrfrei/app/commands/<name>.py`` and exposes ``register(subparsers)``,
 which adds its parser and sets ``func`` (called with the parsed args, returns an exit code).
 Errors a user can fix (bad path, malformed file, unknown law or record, bad parameter) become
 one line on stderr and exit status 2, never a traceback; a numerical failure
@@ -11,13 +11,15 @@ what failed where.
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 
+from rrfrei.app.commands import calibrate, compare, demo, gap, gap_validate, propagate
 from rrfrei.errors import NUMERICAL_ERRORS
 
-# Command modules, in the order they appear in --help.
-COMMANDS = ("calibrate", "compare", "gap", "gap_validate", "propagate", "demo")
+#: Command modules, in the order they appear in --help.
+COMMAND_MODULES = (calibrate, compare, gap, gap_validate, propagate, demo)
+#: Their names (the module names; ``gap_validate`` is the ``gap-validate`` command).
+COMMANDS = tuple(m.__name__.rpartition(".")[2] for m in COMMAND_MODULES)
 
 USER_ERRORS = (ValueError, FileNotFoundError, IsADirectoryError, PermissionError, KeyError)
 
@@ -34,8 +36,8 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Example: rrfrei demo --out report --quick",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for name in COMMANDS:  # every listed command exists: an import failure is a bug and shows
-        importlib.import_module(f"rrfrei.commands.{name}").register(sub)
+    for module in COMMAND_MODULES:
+        module.register(sub)
     return parser
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from rrfrei.app.demo import run_demo
+
 EXAMPLE = """\
 Example:
   rrfrei demo --out report --quick     # about 2 minutes; open report/index.html
@@ -49,8 +51,6 @@ def run(args: argparse.Namespace) -> int:
     import matplotlib
 
     matplotlib.use("Agg")  # no display needed: every figure is embedded in the page
-    from rrfrei.demo import run_demo
-
     result = run_demo(args.out, quick=args.quick, seed=args.seed, progress=not args.no_progress)
     print(f"wrote {result.page} ({result.seconds:.0f} s)")
     if not result.ok:

@@ -5,9 +5,16 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
-from rrfrei.budget import seconds_arg
+from rrfrei.budget import BudgetExceeded, TimeBudget, seconds_arg
+from rrfrei.calibration import ConvergenceWarning, advice, calibrate, plots, predict, run_stats
+from rrfrei.calibration.compare import _az
+from rrfrei.calibration.likelihood import DENSE_POINTS, LIKELIHOOD_POINTS
+from rrfrei.calibration.sampler import MAX_STEPS
+from rrfrei.io import DISP_UNITS, FORCE_UNITS, bundled_tests, load_test, read_test
+from rrfrei.laws import get
 
 EXAMPLE = """\
 Example:
@@ -111,9 +118,6 @@ def register(sub) -> None:
     p.add_argument("--holdout", nargs="*", default=[], metavar="CSV", help="held-out test files to predict")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     add_column_args(p)
-    from rrfrei.calibration.likelihood import DENSE_POINTS, LIKELIHOOD_POINTS
-    from rrfrei.calibration.sampler import MAX_STEPS
-
     p.add_argument("--checkpoint", default=None, metavar="H5|none",
                    help=f"HDF5 chain checkpoint, resumed if present (default DIR/{CHECKPOINT_NAME}, "
                         "restarted if it belongs to another run; none: no checkpoint)")
@@ -166,8 +170,6 @@ def _column(text: str | None, units: dict, what: str) -> tuple[str | None, str |
 
 def load(path: str, args: argparse.Namespace | None = None):
     """A test from a path (columns named by ``args``' column options), or a bundled test by name."""
-    from rrfrei.io import DISP_UNITS, FORCE_UNITS, bundled_tests, load_test, read_test
-
     if not Path(path).exists() and path.removesuffix(".csv") in bundled_tests():
         return load_test(path)
     if args is None or not any(getattr(args, k, None) for k in ("disp_col", "force_col", "time_col")):
@@ -179,16 +181,10 @@ def load(path: str, args: argparse.Namespace | None = None):
 
 
 def run(args: argparse.Namespace) -> int:
-    import warnings
-
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from rrfrei.budget import BudgetExceeded, TimeBudget
-    from rrfrei.calibration import ConvergenceWarning, advice, calibrate, plots, predict, run_stats
-    from rrfrei.laws import get
 
     get(args.law)  # unknown law -> user error before reading anything heavy
     test = load(args.test, args)
@@ -234,8 +230,6 @@ def run(args: argparse.Namespace) -> int:
     pred = predict(cal, test, seed=args.seed)
     pred.cycles.to_csv(out / "cycles.csv", index=False)
     pred.asce.to_csv(out / "asce_7_22.csv", index=False)
-    from rrfrei.calibration.compare import _az
-
     az = _az()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -294,8 +288,6 @@ def run(args: argparse.Namespace) -> int:
 
 def run_line(d: dict) -> str:
     """The summary line of the run: why it stopped, steps of the cap, time, likelihood points."""
-    from rrfrei.calibration import run_stats
-
     why = {"converged": "converged", "steps": "fixed --steps done", "max_steps": "step cap reached",
            "time_budget": "time budget reached"}.get(d.get("stopped_by"), str(d.get("stopped_by")))
     budget = "none" if d.get("time_budget") is None else f"{d['time_budget']:.0f} s"

@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
-from rrfrei.budget import seconds_arg
-from rrfrei.commands.calibrate import add_column_args, load
+from rrfrei.app.commands.calibrate import add_column_args, load
+from rrfrei.budget import BudgetExceeded, TimeBudget, seconds_arg
+from rrfrei.gap import diagnose_gap
+from rrfrei.gap.report import write_report
 
 EXAMPLE = """\
 Example:
@@ -50,12 +53,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from pathlib import Path
-
-    from rrfrei.budget import BudgetExceeded, TimeBudget
-    from rrfrei.gap import diagnose_gap
-    from rrfrei.gap.report import write_report
-
     budget = TimeBudget(args.time_budget, what="rrfrei gap", option="--time-budget")
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")

@@ -5,6 +5,14 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
+
+import pandas as pd
+
+import ground_motions
+from structures.inputs import resolve_building, resolve_records
+from structures.propagate import propagate
+from structures.summaries import ALL
 
 EXAMPLE = """\
 Example:
@@ -89,28 +97,20 @@ def register(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    import matplotlib
+    import matplotlib  # deferred: only a run draws figures (and --help stays quick)
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import pandas as pd
-
-    from structures.propagate import _resolve_building, _resolve_records, propagate
-    from structures.summaries import ALL
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {str(out)!r} exists and is not a folder")
     # validate cheap inputs first, in the order a user reads the command line
-    building = _resolve_building(args.building)
+    building = resolve_building(args.building)
     names = [s.strip() for s in args.records.split(",") if s.strip()]
     if names == ["all"]:
-        import ground_motions
-
         names = list(ground_motions.available())
-    records = _resolve_records(names)
+    records = resolve_records(names)
     post = Path(args.posterior)
     if not post.exists():
         raise FileNotFoundError(2, "No such file or directory", str(post))
@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     client = None
     if args.scheduler:
         try:
-            from distributed import Client
+            from distributed import Client  # optional dependency (rrfrei[dask]), only with --scheduler
         except ImportError:
             raise ValueError("--scheduler needs dask.distributed: pip install 'rrfrei[dask]'") from None
         try:

@@ -1,0 +1,92 @@
+"""What the demo's steps share: the step sizes, the running context and the failure rules."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from rrfrei.app.report import Section
+
+LAWS = ("plasticity", "bouc_wen", "elastomeric_x", "hdr")
+TESTS = ("protocol1", "protocol2", "protocol3", "protocol4")
+SYNTHETIC = "SYNTHETIC"
+
+
+#: Failures a demo step may meet on valid input (bad data, numerical failure, a structural
+#: analysis that did not converge, a file problem); they are written into the page.  Anything
+#: else is a bug and propagates.
+EXPECTED_FAILURES: tuple[type[BaseException], ...] = (
+    ValueError, RuntimeError, ArithmeticError, OSError, np.linalg.LinAlgError)
+
+
+class Placeholder(Exception):
+    """A step's workflow is not available yet: its section is a placeholder, not a result."""
+
+
+@dataclass(frozen=True)
+class DemoSettings:
+    """Sizes of every step (the defaults are the full run; :meth:`quick_run` the quick one)."""
+
+    quick: bool = False
+    seed: int = 0
+    laws: tuple[str, ...] = LAWS
+    walkers: int = 32
+    steps: int | None = None  # None: until converged (>= 50 tau, stable), up to max_steps
+    max_steps: int = 2000
+    gap_draws: int = 200
+    n_samples: int = 100
+    records: tuple[str, ...] | None = None  # None: every bundled record
+    scales: tuple[float, ...] = (0.5, 1.0, 1.5)
+    building: str = "five_story"
+    rubber_evals: int = 800
+    rubber_restarts: int = 1
+    predict_draws: int = 200
+
+    @classmethod
+    def full_run(cls, seed: int = 0) -> DemoSettings:
+        return cls(seed=seed)
+
+    @classmethod
+    def quick_run(cls, seed: int = 0) -> DemoSettings:
+        return cls(
+            quick=True,
+            seed=seed,
+            walkers=24,
+            steps=200,
+            gap_draws=60,
+            n_samples=16,
+            records=("elcentro", "kocaeli"),
+            scales=(1.0,),
+            rubber_evals=300,
+            rubber_restarts=1,
+            predict_draws=100,
+        )
+
+
+@dataclass
+class DemoContext:
+    """What the steps share: settings, the loaded tests and the results of earlier steps."""
+
+    settings: DemoSettings
+    progress: bool = True
+    tests: dict[str, Any] = field(default_factory=dict)
+    calibrations: dict[str, Any] = field(default_factory=dict)
+    best_law: str | None = None
+    results: dict[str, Any] = field(default_factory=dict)
+
+    def need(self, what: str, step: str) -> Any:
+        """The result ``what`` of an earlier step, or an error saying that step did not give it."""
+        value = getattr(self, what, None) if what != "results" else self.results
+        if not value:
+            raise RuntimeError(f"this step needs the result of the '{step}' step, which did not finish")
+        return value
+
+
+@dataclass(frozen=True)
+class Step:
+    key: str
+    title: str
+    func: Callable[[DemoContext, Section], None]

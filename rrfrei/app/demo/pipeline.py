@@ -1,0 +1,135 @@
+"""The demo's pipeline: run the steps in order, each into its section, and write the page."""
+
+from __future__ import annotations
+
+import time
+import traceback
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from rrfrei import __version__
+from rrfrei.app.demo import steps as _steps
+from rrfrei.app.demo.context import EXPECTED_FAILURES, SYNTHETIC, DemoContext, DemoSettings, Placeholder, Step
+from rrfrei.app.report import Report, Section
+from rrfrei.budget import stderr_is_tty
+
+
+@dataclass(frozen=True)
+class DemoResult:
+    """Where the page is, the report object and the status of every step."""
+
+    page: Path
+    report: Report
+    seconds: float
+
+    @property
+    def ok(self) -> bool:
+        return self.report.ok
+
+    @property
+    def failed(self) -> tuple[str, ...]:
+        return tuple(s.key for s in self.report.sections if s.status != "ok")
+
+
+def run_step(step: Step, ctx: DemoContext) -> Section:
+    """Run one step into a fresh section; errors and placeholders are caught into the section."""
+    sec = Section(step.key, step.title)
+    t0, c0 = time.perf_counter(), time.process_time()
+    try:
+        step.func(ctx, sec)
+        if not sec.reading:
+            raise RuntimeError(f"step {step.key!r} produced no reading")
+    except Placeholder as exc:
+        sec.placeholder = True
+        sec.reading = f"Placeholder: {exc}."
+    except EXPECTED_FAILURES as exc:  # a failing step must not kill the page; a bug (TypeError,
+        # AttributeError, ...) is not caught: it must show, not hide in a page
+        tb = traceback.extract_tb(exc.__traceback__)[-3:]
+        where = "".join(traceback.format_list(tb))
+        sec.error = f"{type(exc).__name__}: {exc}\n\nWhere:\n{where}"
+    sec.seconds = time.perf_counter() - t0
+    sec.cpu_seconds = time.process_time() - c0
+    return sec
+
+
+def run_demo(
+    out: str | Path = "rrfrei-report",
+    *,
+    quick: bool = False,
+    seed: int = 0,
+    progress: bool = True,
+    settings: DemoSettings | None = None,
+    steps: Sequence[Step] | None = None,
+) -> DemoResult:
+    """Run every step and write the page ``out/index.html`` with its tables and manifest.
+
+    Parameters
+    ----------
+    out : folder to write (created if needed).
+    quick : fewer walkers/steps, samples, records and a shorter rubber fit (the page says so).
+    seed : seed of every stochastic step.
+    progress : show tqdm progress bars on the long steps.
+    settings : explicit step sizes (overrides ``quick``/``seed``).
+    steps : the steps to run (default :data:`rrfrei.app.demo.steps.STEPS`).
+
+    Returns
+    -------
+    DemoResult with ``ok`` False when a step failed or is a placeholder.
+    """
+    if not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {str(out)!r} exists and is not a folder")
+    if settings is None:
+        settings = DemoSettings.quick_run(int(seed)) if quick else DemoSettings.full_run(int(seed))
+    else:
+        settings = replace(settings)
+    steps = _steps.STEPS if steps is None else tuple(steps)
+
+    report = Report(
+        "rrfrei: from isolator tests to building response",
+        intro=(
+            "Every workflow of rrfrei run on the bundled data: calibration of four isolator laws on a "
+            "cyclic shear test, model comparison, validation on held-out tests, sim-to-real gap "
+            "diagnosis, propagation of the posterior through ground motions on an example "
+            "building, and the polyurethane model fits. Every reading below is computed from the "
+            "numbers of this run."
+        ),
+    )
+    report.banner(
+        f"The isolator tests are {SYNTHETIC} RR-FREI-like tests (made by an independent model with "
+        "noise); no real RR-FREI test data are public.",
+        "synthetic",
+    )
+    if settings.quick:
+        report.banner(
+            "This is a QUICK run (--quick): short chains, few samples and records, a short rubber "
+            "fit. Numbers are indicative only; run without --quick for the full analysis.",
+            "note",
+        )
+    report.meta.update(
+        {
+            "rrfrei version": __version__,
+            "run": "quick" if settings.quick else "full",
+            "seed": settings.seed,
+            "date": time.strftime("%Y-%m-%d %H:%M"),
+        }
+    )
+    # inner bars (optimiser, sampler, gap, propagation, fits) only on a terminal: in a log every
+    # tqdm refresh is a new line, and the step bar below says enough
+    inner = progress and stderr_is_tty()
+    ctx = DemoContext(settings=settings, progress=inner)
+    t0 = time.perf_counter()
+    bar = _steps.tqdm_or_plain(steps, progress, desc="rrfrei demo", unit="step")
+    for step in bar:
+        if hasattr(bar, "set_postfix_str"):
+            bar.set_postfix_str(step.key)
+        report.add(run_step(step, ctx))
+    seconds = time.perf_counter() - t0
+    report.meta["total time"] = f"{seconds:.0f} s"
+    page = report.write(out)
+    return DemoResult(page=page, report=report, seconds=seconds)

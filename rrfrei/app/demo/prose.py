@@ -1,0 +1,225 @@
+"""The demo page's readings: one plain-language paragraph per step, computed from its numbers.
+
+Each function takes the step's tables and results and returns the text of its section; nothing
+here computes a result, draws or writes.  Shares are shown as percentages (:func:`pct`), other
+numbers with :func:`rrfrei.app.report.fmt`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from rrfrei.app.demo.context import SYNTHETIC
+from rrfrei.app.report import fmt
+
+
+def pct(x: float) -> str:
+    """A share as a percentage (two significant digits below 0.1 %, so small shares are not 0.0 %)."""
+    v = 100 * float(x)
+    return f"{v:.2g} %" if 0 < abs(v) < 0.1 else f"{v:.1f} %"
+
+
+def tests_reading(summary: pd.DataFrame, cycles: pd.DataFrame) -> str:
+    """Step 1: the span of protocol 1 and how its largest and first cycles differ."""
+    p1 = cycles[cycles["test"] == "protocol1"]
+    big = p1.loc[p1["energy"].idxmax()] if len(p1) else None
+    first = p1.iloc[0] if len(p1) else None
+    reading = (
+        f"The four isolator tests are {SYNTHETIC}: made by an independent model with noise, standing "
+        f"in for the scaled RR-FREI specimens (no real test data are public). Protocol 1 spans "
+        f"{fmt(summary.loc[0, 'disp_min_mm'], 3)} to {fmt(summary.loc[0, 'disp_max_mm'], 3)} mm and "
+        f"{fmt(summary.loc[0, 'force_min_kN'], 3)} to {fmt(summary.loc[0, 'force_max_kN'], 3)} kN "
+        f"in {len(p1)} full cycles."
+    )
+    if big is not None and first is not None:
+        reading += (
+            f" Its largest cycle dissipates {fmt(big['energy'], 3)} kN m with an effective stiffness "
+            f"of {fmt(big['k_eff'], 3)} kN/m and effective damping {pct(big['beta_eff'])}; the first "
+            f"small cycle is {'stiffer' if first['k_eff'] > big['k_eff'] else 'softer'} "
+            f"(k_eff {fmt(first['k_eff'], 3)} kN/m), the usual softening of rubber bearings with "
+            f"amplitude."
+        )
+    return reading
+
+
+def calibration_reading(fits: pd.DataFrame, failed: dict[str, str], quick: bool) -> str:
+    """Step 2: the closest and loosest fit, convergence, and the laws whose calibration failed."""
+    best = fits.loc[fits["nrmse"].idxmin()]
+    worst = fits.loc[fits["nrmse"].idxmax()]
+    n_conv = int(fits["converged"].sum())
+    reading = (
+        f"{len(fits)} laws were calibrated on protocol 1 ({SYNTHETIC}). The closest fit is "
+        f"{best['law']} (NRMSE {pct(best['nrmse'])}, noise sd {fmt(best['sigma_kN'], 3)} kN, band "
+        f"coverage {pct(best['coverage'])}); the loosest is {worst['law']} (NRMSE "
+        f"{pct(worst['nrmse'])}). {n_conv} of {len(fits)} chains met the convergence rule (>= 50 "
+        f"autocorrelation times, R-hat < 1.05)"
+    )
+    if n_conv < len(fits):
+        bad = ", ".join(fits.loc[~fits["converged"], "law"])
+        reading += f"; {bad} did not"
+        reading += ", as expected of the short chains of a quick run" if quick else ""
+    reading += "."
+    if failed:
+        reading += (f" The calibration of {', '.join(failed)} failed (below); the other steps go on "
+                    "without it.")
+    return reading
+
+
+def comparison_reading(t: pd.DataFrame) -> str:
+    """Step 3: PSIS-LOO's ranking, how clear it is, whether WAIC and LOCO agree, Pareto k."""
+    best, second = t.index[0], t.index[1]
+    diff = float(t.loc[best, "elpd_loo"] - t.loc[second, "elpd_loo"])
+    dse = float(t.loc[second, "dse_loo"])
+    ratio = diff / dse if dse > 0 else float("inf")
+    verdict = ("a clear difference" if ratio > 2 else
+               "within about two standard errors: the data hardly separate them")
+    loco_best = str(t["elpd_loco"].idxmax())
+    waic_best = str(t["elpd_waic"].idxmax())
+    worst_k = float(t["k_max_loo"].max())
+    reading = (
+        f"PSIS-LOO ranks {best} first (elpd {fmt(t.loc[best, 'elpd_loo'], 5)} +- "
+        f"{fmt(t.loc[best, 'se_loo'], 3)}), ahead of {second} by {fmt(diff, 3)} with a standard error "
+        f"of the difference of {fmt(dse, 3)} ({fmt(ratio, 2)} se: {verdict}). WAIC "
+        f"{'agrees' if waic_best == best else f'prefers {waic_best}'}, and leave-one-cycle-out, which "
+        f"holds out whole cycles and so judges prediction of unseen loops, "
+        f"{'agrees' if loco_best == best else f'prefers {loco_best}'}. "
+    )
+    reading += (f"The largest Pareto k is {fmt(worst_k, 3)}"
+                + (" (above 0.7: some LOO estimates are unreliable)." if worst_k > 0.7
+                   else " (below 0.7: the LOO estimates are reliable)."))
+    reading += f" The best law, {best}, is carried into the next steps."
+    return reading
+
+
+def validation_reading(best: str, table: pd.DataFrame, cal_nrmse: float | None) -> str:
+    """Step 4: held-out errors against the calibration error, band coverage, energy error."""
+    worst = table.loc[table["nrmse"].idxmax()]
+    reading = (
+        f"{best}, calibrated on protocol 1 only, predicts the held-out {SYNTHETIC} protocols 2-4 with "
+        f"NRMSE between {pct(table['nrmse'].min())} and {pct(table['nrmse'].max())}; the hardest is "
+        f"{worst['test']}"
+    )
+    if cal_nrmse is not None:
+        ratio = float(table["nrmse"].mean()) / cal_nrmse
+        reading += (f", and on average the error is {fmt(ratio, 2)} times the calibration error "
+                    f"({pct(cal_nrmse)})")
+    lo, hi = float(table["coverage"].min()), float(table["coverage"].max())
+    reading += (
+        f". The 95 % band holds {pct(lo)} to {pct(hi)} of the held-out points: "
+        + ("about the nominal 95 %, so the uncertainty is honest." if lo >= 0.9 else
+           "below the nominal 95 %, so the law misses something the held-out tests show (see the gap "
+           "step).")
+    )
+    e = table[table["cycles"] > 0]
+    if len(e):
+        err = (e["energy_map_kNm"] - e["energy_test_kNm"]) / e["energy_test_kNm"]
+        k = int(np.argmax(np.abs(err.to_numpy())))
+        reading += (f" The MAP {'over' if err.iloc[k] > 0 else 'under'}estimates the energy dissipated "
+                    f"in {e['test'].iloc[k]} by {pct(abs(err.iloc[k]))}.")
+    return reading
+
+
+def gap_reading(rep: Any, best: str) -> str:
+    """Step 5: the baseline's gap, where it sits, the diagnosis and how far it shrinks the gap."""
+    b_cal, b_hold = rep.baseline
+    f_cal, f_hold = rep.final
+    top = rep.where.iloc[0] if len(rep.where) else None
+    reading = f"Baseline {best} on protocol 1 ({SYNTHETIC}): gap (NRMSE) {pct(b_cal.gap)}, of which the " \
+              f"systematic part is {pct(b_cal.systematic)}"
+    if b_hold is not None:
+        reading += f"; on the held-out protocols 2-4 the gap is {pct(b_hold.gap)}"
+    reading += "."
+    if top is not None:
+        reading += (f" The residuals concentrate in the {top['axis']} segment '{top['segment']}' "
+                    f"({pct(top['error_share'])} of the squared error, {fmt(top['rms_over_noise'], 3)} "
+                    f"times the noise level).")
+    if rep.diagnosis == "none":
+        reading += (" No catalogue effect improves the expected predictive accuracy significantly: the "
+                    "diagnosis is 'none'.")
+    else:
+        winner = next(e for e in rep.ranking if e.effect == rep.diagnosis)
+        reading += (f" The diagnosis is '{rep.diagnosis}': adding it gains {fmt(winner.delta_elpd, 3)} "
+                    f"(se {fmt(winner.se, 3)}) in leave-one-cycle-out elpd")
+        if math.isfinite(winner.shrink_holdout):
+            reading += f" and shrinks the held-out systematic gap by {pct(winner.shrink_holdout)}"
+        reading += "."
+        if len(rep.combination) > 1:
+            reading += f" The greedy combination is {' + '.join(rep.combination)}."
+        reading += f" With it the calibration gap goes from {pct(b_cal.gap)} to {pct(f_cal.gap)}"
+        if b_hold is not None and f_hold is not None:
+            reading += f" and the held-out gap from {pct(b_hold.gap)} to {pct(f_hold.gap)}"
+        reading += "."
+    return reading
+
+
+def propagation_reading(rs: Any, summary: pd.DataFrame, exceed: pd.DataFrame, split: pd.DataFrame,
+                        *, building: str, count: int, law: str, scale: float) -> str:
+    """Step 6: median and spread of the peak isolator displacement, drift, exceedance, variance split."""
+    row = summary[(summary["demand"] == "iso_disp_peak_m") & (summary["record"] == "all records")
+                  & (summary["scale"] == scale)].iloc[0]
+    drift = summary[(summary["demand"] == "drift_ratio_max") & (summary["record"] == "all records")
+                    & (summary["scale"] == scale)].iloc[0]
+    per_rec = summary[(summary["demand"] == "iso_disp_peak_m") & (summary["record"] != "all records")
+                      & (summary["scale"] == scale)]
+    worst_rec = per_rec.loc[per_rec["median"].idxmax()]
+    lim = rs.limits.get("iso_disp_peak_m")
+    p_ex = exceed[(exceed["demand"] == "iso_disp_peak_m") & (exceed["record"] == "all records")
+                  & (exceed["scale"] == scale)]["p_exceed"]
+    sp = split[(split["demand"] == "iso_disp_peak_m") & (split["scale"] == scale)]["share_params"]
+    n_conv = int(rs.table["converged"].astype(bool).sum())
+    reading = (
+        f"{len(rs.table)} analyses of the {building.replace('_', '-')} example building with its "
+        f"{count} bearings following the {law} posterior ({n_conv} converged). At scale "
+        f"{fmt(scale)} the peak isolator displacement has a median of {fmt(1e3 * row['median'], 3)} mm "
+        f"over all records (16-84 %: {fmt(1e3 * row['p16'], 3)}-{fmt(1e3 * row['p84'], 3)} mm); "
+        f"{worst_rec['record']} drives it hardest (median {fmt(1e3 * worst_rec['median'], 3)} mm). "
+        f"The median peak story drift ratio is {pct(drift['median'])}."
+    )
+    if lim is not None and len(p_ex):
+        pe = float(p_ex.iloc[0])
+        beyond = f"beyond {fmt(1e3 * lim, 3)} mm (the largest displacement tested, at prototype scale)"
+        reading += (f" None of the runs takes the isolator {beyond}" if pe == 0 else
+                    f" The chance that the isolator goes {beyond} is {pct(pe)}")
+        ext = rs.extrapolated_share()
+        reading += (f"; {pct(ext)} of the runs leave the calibrated range, where the law extrapolates."
+                    if np.isfinite(ext) else ".")
+    if len(sp) and np.isfinite(sp.iloc[0]):
+        reading += (f" The isolator parameters explain {pct(float(sp.iloc[0]))} of the variance of the "
+                    f"log peak isolator displacement; the records explain most of the rest"
+                    if float(sp.iloc[0]) < 0.5 else
+                    f" The isolator parameters explain {pct(float(sp.iloc[0]))} of the variance of the "
+                    f"log peak isolator displacement, more than the records")
+        reading += " (law of total variance)."
+    return reading
+
+
+def rubber_reading(table: pd.DataFrame, fits: dict[str, Any], *, noise: float, mu_err: float,
+                   p2_name: str, vhb_name: str, quick: bool) -> str:
+    """Step 7: misfit and identifiability of the PRF fits, cross-prediction, the real VHB 4910 fit."""
+    def rms(fit_label: str, test_name: str) -> float:
+        row = table[(table["fit"] == fit_label) & (table["evaluated_on"] == test_name)]
+        return float(row["rms_error"].iloc[0])
+
+    both = fits["both protocols"]
+    both_rms = math.sqrt(both.f_total / len(both.f))
+    unident = sorted(n for n, v in both.rel_sigma.items() if v is not None and v > 1)
+    reading = (
+        f"The polyurethane (PRF) model fitted to both {SYNTHETIC} protocols (made from preset A with "
+        f"{fmt(noise)} MPa noise) misfits them by {pct(both_rms)} RMS; its small-strain chain moduli are "
+        f"within {pct(mu_err)} of the truth"
+    )
+    reading += (f", while {', '.join(unident)} {'is' if len(unident) == 1 else 'are'} practically "
+                "unidentifiable from these data." if unident else ".")
+    if "protocol 1" in fits:
+        cross = rms("protocol 1", p2_name) / max(rms("protocol 2", p2_name), 1e-300)
+        reading += (f" Fitted to protocol 1 alone, it predicts protocol 2 with {fmt(cross, 3)} times the "
+                    f"RMS error of a fit to protocol 2 itself.")
+    reading += (f" On the real VHB 4910 data (Miles et al.) the fit reaches an RMS misfit of "
+                f"{pct(rms('VHB 4910 (real)', vhb_name))}.")
+    if quick:
+        reading += " (Quick run: one short CMA-ES run per fit.)"
+    return reading
