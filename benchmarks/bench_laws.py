@@ -3,9 +3,9 @@
 For each OpenSees law: openseespy's fastest path (model built, then ONE ``analyze(10000)`` call
 with an element recorder writing to a file; building the model is excluded) against
 ``rrfrei.simulate_force`` (public API, validation included) and the bare Numba driver
-(``rrfrei.laws.kernel.run_history``), measured in the same run, best of ``REPEAT``.  Also the
-cold start in a fresh subprocess (import + first ``simulate_force`` call) with an empty and with a
-warm Numba cache.  Writes section ``bench_laws`` of ``benchmarks/RESULTS.md``.
+(the law's history driver, ``rrfrei.laws.specialise.history``), measured in the same run, best
+of ``REPEAT``.  Also the cold start in a fresh subprocess (import + first ``simulate_force``
+call) with an empty and with a warm Numba cache.  Writes section ``bench_laws`` of ``benchmarks/RESULTS.md``.
 
 Run: ``python benchmarks/bench_laws.py``.
 """
@@ -29,7 +29,7 @@ from _results import write_section  # noqa: E402
 
 import rrfrei  # noqa: E402
 from rrfrei.laws import get  # noqa: E402
-from rrfrei.laws.kernel import run_history  # noqa: E402
+from rrfrei.laws.specialise import history as law_driver  # noqa: E402
 
 N = 10_000
 REPEAT = 5
@@ -115,8 +115,9 @@ def main() -> None:
         state0 = np.array(spec.initial_state)
         rrfrei.simulate_force(law, p, u)  # compile / load
         t_api = best(lambda law=law, p=p: rrfrei.simulate_force(law, p, u))
-        t_raw = best(lambda spec=spec, packed=packed, state0=state0, t=t, force=force, tang=tang:
-                     run_history(spec.code, packed, state0, u, t, False, 1, force, tang))
+        drive = law_driver(spec)
+        t_raw = best(lambda drive=drive, packed=packed, state0=state0, t=t, force=force, tang=tang:
+                     drive(packed, state0.copy(), state0.copy(), u, t, False, 1, force, tang))
         t_os, f_os = time_opensees(ops, law, p, u)
         f = rrfrei.simulate_force(law, p, u)
         err = float(np.max(np.abs(f - f_os)) / np.max(np.abs(f_os)))

@@ -2,7 +2,8 @@
 
 Layers (arrows point down only): CLI (``rrfrei.cli``) -> workflows (``calibrate``,
 ``compare``, ``diagnose_gap``, ``structures.propagate``) -> models (frozen dataclasses:
-``LawSpec``, ``ShearTest``, ...) -> Numba kernels (``rrfrei.laws.kernel``).
+``LawSpec``, ``ShearTest``, ...) -> Numba kernels (``rrfrei.laws``; kernels that call a law
+are instantiated per law by ``rrfrei.laws.specialise``).
 
 Units: kN, m, s, tonnes throughout.
 
