@@ -202,6 +202,13 @@ class LawSpec:
             )
         self.initial_state.setflags(write=False)
 
+    def __reduce_ex__(self, protocol):
+        """A registered law pickles by name (its kernels live in its module; an augmented law's
+        step in a generated file), so another process rebuilds it from the registry."""
+        if _REGISTRY.get(self.name) is self:
+            return (get, (self.name,))
+        return super().__reduce_ex__(protocol)
+
     # --- names -------------------------------------------------------------------------
     @property
     def param_names(self) -> tuple[str, ...]:
