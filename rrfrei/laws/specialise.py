@@ -202,8 +202,15 @@ def history(spec, robust: bool = False):
     fast solver), else the instance of :data:`HISTORY` bound to the law's step kernels, with the
     step inlined in the time loop (about twice as fast as a call per step through a dispatch).
     """
+    hit = _DRIVERS.get((id(spec), robust))
+    if hit is not None and hit[0] is spec:
+        return hit[1]
     own = spec.drive_robust if robust else spec.drive
-    if own is not None:
-        return own
-    module = instantiate(HISTORY, bindings(spec), spec.name)
-    return module.drive_robust if robust else module.drive
+    if own is None:
+        module = instantiate(HISTORY, bindings(spec), spec.name)
+        own = module.drive_robust if robust else module.drive
+    _DRIVERS[(id(spec), robust)] = (spec, own)  # the spec is kept alive: its id stays its own
+    return own
+
+
+_DRIVERS: dict[tuple[int, bool], tuple[object, object]] = {}
