@@ -388,13 +388,13 @@ from rrfrei.simulate import deviation_warning, robust_hint, robust_local_solve  
 from structures import energy as _energy  # noqa: E402
 
 _DEFAULT_MAX_ITER = 50
+_DEFAULT_LEVELS = 6
 
 
 def _kernels(spec):
-    """This module's kernels (:func:`integrate`, :func:`batch`) with the law ``spec`` bound."""
+    """This module's kernels (:func:`integrate`, :func:`batch`) with the law ``spec`` bound
+    (an instance of this module as a template, :mod:`rrfrei.laws.specialise`)."""
     return instantiate(__name__, bindings(spec), spec.name)
-
-_DEFAULT_LEVELS = 6
 
 
 class ConvergenceError(RuntimeError):
