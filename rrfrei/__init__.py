@@ -7,7 +7,8 @@ layer order, bottom to top, is ``rrfrei._jit_cache`` -> ``ground_motions`` -> rr
 ``structures`` | ``rubber`` -> ``rrfrei.app`` (see :mod:`rrfrei.app`, checked by
 ``tests/test_layers.py``).  Within the core: workflows (``calibrate``, ``compare``,
 ``diagnose_gap``) -> models (frozen dataclasses: ``LawSpec``, ``ShearTest``, ...) -> Numba
-kernels (``rrfrei.laws.kernel``).
+kernels (``rrfrei.laws``; kernels that call a law
+are instantiated per law by ``rrfrei.laws.specialise``).
 
 Units: kN, m, s, tonnes throughout.
 

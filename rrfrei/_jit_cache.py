@@ -1,10 +1,11 @@
 """One Numba cache per version of the kernel sources, so compiled code is never stale.
 
 Numba keys a cached function on the source file *of that function* only.  A cached caller in
-another file (``laws/dispatch.py``, ``laws/kernel.py``, ``calibration/likelihood.py``,
+another file (the per-law instances of ``laws/_history.py``, ``calibration/_batch.py`` and
 ``structures/newmark.py``, every law through the ``inline="always"`` helpers of
 ``laws/_util.py``) would otherwise keep the old machine code after a law file changes, and
-return the old law's forces.
+return the old law's forces.  (The instances' own file names also hash the bound law sources,
+:mod:`rrfrei.laws.specialise`, which covers laws outside these packages.)
 
 This module is imported by every package of the project (``rrfrei``, ``structures``,
 ``rubber``, ``ground_motions``) before any ``@njit(cache=True)`` is decorated.  It hashes every

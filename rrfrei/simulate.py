@@ -9,17 +9,12 @@ import numpy as np
 
 from rrfrei._inputs import as_history
 from rrfrei.errors import NumericalFailure
-from rrfrei.laws import STATUS_MESSAGES, LawSpec, bouc_wen, get
-from rrfrei.laws.dispatch import base_drive
-from rrfrei.laws.kernel import drive
+from rrfrei.laws import STATUS_MESSAGES, LawSpec, get, names
+from rrfrei.laws.specialise import history
 
 LOCAL_SOLVERS = ("opensees", "robust")
 """Values of the ``local_solver`` option of :func:`simulate_force` and
 :func:`structures.time_history`."""
-
-_NO_LOCAL_ITERATION = ("linear", "plasticity")
-"""Base laws whose update is closed-form (no local iteration: ``"robust"`` changes nothing)."""
-
 
 class LocalSolverDeviation(UserWarning):
     """The robust local solve replaced OpenSees' failed (or falsely converged) local iteration
@@ -38,12 +33,14 @@ class LocalSolverDeviation(UserWarning):
 
 
 def robust_local_solve(spec: LawSpec, local_solver) -> bool:
-    """True when ``local_solver`` asks for the robust Bouc-Wen solve, after validating it.
+    """True when ``local_solver`` asks for the law's robust local solve, after validating it.
 
     ``"opensees"`` (OpenSees' own local iteration, the default) is valid for every law;
-    ``"robust"`` for ``bouc_wen`` (bracketed safeguarded Newton where OpenSees' iteration fails,
-    see :mod:`rrfrei.laws.bouc_wen`) and for the closed-form laws (``linear``, ``plasticity``),
-    where it changes nothing.  Raises ``ValueError`` otherwise.
+    ``"robust"`` for a law with a robust local solve in its registry entry
+    (``LawSpec.step_robust``: ``bouc_wen``'s bracketed safeguarded Newton where OpenSees'
+    iteration fails, see :mod:`rrfrei.laws.bouc_wen`) and for the closed-form laws
+    (``local_iteration=False``: ``linear``, ``plasticity``), where it changes nothing.  Raises
+    ``ValueError`` otherwise.
     """
     if not isinstance(local_solver, str) or local_solver not in LOCAL_SOLVERS:
         raise ValueError(
@@ -51,15 +48,21 @@ def robust_local_solve(spec: LawSpec, local_solver) -> bool:
         )
     if local_solver == "opensees":
         return False
-    if not spec.effects and spec.name == "bouc_wen":
+    if spec.step_robust is not None:
         return True
-    if not spec.effects and spec.name in _NO_LOCAL_ITERATION:
+    if not spec.local_iteration:
         return False
+    robust = [n for n in names() if get(n).step_robust is not None]
+    closed = [n for n in names() if not get(n).local_iteration]
     raise ValueError(
         f"local_solver = 'robust' is not available for law {spec.name!r}: it is implemented for "
-        "'bouc_wen' (and is a no-op for the closed-form laws 'linear' and 'plasticity'); use "
+        f"{_quoted(robust)} (and is a no-op for the closed-form laws {_quoted(closed)}); use "
         "local_solver='opensees'"
     )
+
+
+def _quoted(items: list[str]) -> str:
+    return " and ".join(", ".join(repr(x) for x in items).rsplit(", ", 1)) if items else "(none)"
 
 
 def deviation_warning(law: str, samples: np.ndarray, where: str = "sample") -> LocalSolverDeviation:
@@ -82,8 +85,10 @@ ROBUST_HINT = (
 
 def robust_hint(spec: LawSpec, status: int, robust: bool) -> str:
     """:data:`ROBUST_HINT` for a failure message when the robust solve could have helped (a
-    ``bouc_wen`` local-iteration failure, status -1 or -2, with the default solver), else ""."""
-    return ROBUST_HINT if status in (-1, -2) and spec.name == "bouc_wen" and not robust else ""
+    local-iteration failure, status -1 or -2, of a law with a robust local solve, e.g.
+    ``bouc_wen``, with the default solver), else ""."""
+    return (ROBUST_HINT if status in (-1, -2) and spec.step_robust is not None and not robust
+            else "")
 
 
 def simulate_force(
@@ -157,16 +162,12 @@ def simulate_force(
     sc = np.array(spec.initial_state, dtype=float)
     st = sc.copy()
     deviated = None
+    drive = history(spec, robust)  # the law's own history driver: only this law is compiled
     if robust:
         deviated = np.zeros(u.size, dtype=np.int64)
-        status, idx = bouc_wen.drive_robust(p, sc, st, u, t, use_time, int(substeps), force,
-                                            tangent, deviated)
-    elif spec.effects:
-        status, idx = drive(spec.code, p, sc, st, u, t, use_time, int(substeps), force, tangent)
-    else:  # base law: its own loop, without compiling the effect catalogue (cold start)
-        status, idx = base_drive(
-            int(spec.kernel_id), p, sc, st, u, t, use_time, int(substeps), force, tangent
-        )
+        status, idx = drive(p, sc, st, u, t, use_time, int(substeps), force, tangent, deviated)
+    else:
+        status, idx = drive(p, sc, st, u, t, use_time, int(substeps), force, tangent)
     if status != 0:
         raise NumericalFailure(
             f"law {spec.name!r} failed at sample {idx} (disp = {u[idx]:.6g} m): "

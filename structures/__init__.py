@@ -1,7 +1,7 @@
 """Shear buildings on isolators: models, time histories, energy balance, propagation.
 
 Layers: :mod:`structures.newmark` holds the Numba kernels (Newmark + Newton over a tridiagonal
-chain, calling ``rrfrei.laws.kernel.step`` for the isolator) and the public verbs
+chain, calling the isolator law's step kernel) and the public verbs
 :func:`time_history` / :func:`time_history_batch`; :mod:`structures.building` the frozen models
 (:class:`ShearBuilding`, :class:`Isolator`) with modal analysis and TOML loading;
 :mod:`structures.energy` the energy balance; :mod:`structures.propagate` posterior propagation

@@ -18,8 +18,8 @@ and the base (DOF 0).  Each step follows OpenSees' ``Newmark`` (displacement for
 The effective matrix is tridiagonal.  Its superstructure part depends on the step size only, so
 it is eliminated once (from the roof down) and a Newton iteration costs one residual, one
 forward/back substitution and one division by the base pivot (which carries the isolator
-tangent); nothing is allocated in the time loop.  The base laws are called directly (same
-kernels as ``rrfrei.laws.kernel.step``, which serves augmented laws).  A step whose Newton
+tangent); nothing is allocated in the time loop.  The law is called through the template slots
+``law_step`` / ``law_step_robust``, bound per law (:func:`_kernels`).  A step whose Newton
 iteration fails (no convergence in ``max_iter``, a law status < 0 or a
 non-finite force) is retried from the committed state in 2, 4, ... 2^max_levels equal substeps
 with the ground acceleration interpolated linearly.
@@ -38,8 +38,12 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from rrfrei.laws import bouc_wen, elastomeric_x, hdr, linear, plasticity
-from rrfrei.laws.kernel import step as law_step
+from rrfrei.laws.specialise import bindings, instantiate, unbound
+
+# template slots (rrfrei.laws.specialise): the isolator law's step kernels, bound per law
+SLOTS = ("law_step", "law_step_robust")
+law_step = unbound("law_step")
+law_step_robust = unbound("law_step_robust")
 
 # rows of the work array W (each of length ndof)
 _U, _V, _A, _UT, _VT, _AT, _DU, _R, _DI, _LO, _CP, _US, _VS, _AS = range(14)
@@ -81,19 +85,19 @@ def _factor(m, ks, cs, cg, c1, c2, W):
 
 
 @njit(cache=True)
-def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
+def integrate(p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
               robust, store, W, sc, st, sc_save, S, U, VB, A, F, E, iters, levels, drift, acc, out):
     """One analysis from rest; the whole step logic in one flat loop.
 
     Parameters
     ----------
-    code, p : law dispatch code and parameters (law scale); count, s : bearings and similitude.
+    p : law parameters (law scale); count, s : bearings and similitude.
     m (ndof) : masses [base, floors] [t]; ks, cs (ndof-1) story springs [kN/m] and dashpots
         [kN s/m]; cg (ndof) dashpots to the ground [kN s/m]; hts (ndof-1) story heights [m].
     state0 : the law's initial state.  ag : ground acceleration [m/s^2] every ``dt`` [s].
     gamma, beta, tol, max_iter, max_levels : Newmark, Newton and subdivision settings.
-    robust : at the last subdivision level only (where the default would fail), a Bouc-Wen
-        isolator uses :func:`rrfrei.laws.bouc_wen.step_robust`; an output step where it acted
+    robust : at the last subdivision level only (where the default would fail), the isolator
+        uses its robust local solve (``law_step_robust``); an output step where it acted
         (OpenSees' local iteration failed) gets ``levels[k] = -1 - level`` (when storing) and is
         counted in ``out[OUT_NROBUST]``.  Everywhere else the steps are the default ones.
     store : write the histories ``U`` (relative displacement) and ``A`` (absolute acceleration)
@@ -229,24 +233,13 @@ def integrate(code, p, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta
                     # -- isolator update at the trial state (the only law call site)
                     ul = W[_UT, 0] / s
                     vl = W[_VT, 0] / s
-                    if code[3] == 0 and code[0] == bouc_wen.KERNEL_ID:
-                        if robust and level == max_levels:
-                            fl, kl, status = bouc_wen.step_robust(p, sc, ul, vl, h, st)
-                            if status == bouc_wen.STATUS_ROBUST:
-                                status = 0
-                                dev = True
-                        else:
-                            fl, kl, status = bouc_wen.step(p, sc, ul, vl, h, st)
-                    elif code[3] == 0 and code[0] == plasticity.KERNEL_ID:
-                        fl, kl, status = plasticity.step(p, sc, ul, vl, h, st)
-                    elif code[3] == 0 and code[0] == elastomeric_x.KERNEL_ID:
-                        fl, kl, status = elastomeric_x.step(p, sc, ul, vl, h, st)
-                    elif code[3] == 0 and code[0] == hdr.KERNEL_ID:
-                        fl, kl, status = hdr.step(p, sc, ul, vl, h, st)
-                    elif code[3] == 0 and code[0] == linear.KERNEL_ID:
-                        fl, kl, status = linear.step(p, sc, ul, vl, h, st)
+                    if robust and level == max_levels:
+                        fl, kl, status = law_step_robust(p, sc, ul, vl, h, st)
+                        if status > 0:  # the robust solve acted: a deviation from OpenSees
+                            status = 0
+                            dev = True
                     else:
-                        fl, kl, status = law_step(code, p, sc, ul, vl, h, st)
+                        fl, kl, status = law_step(p, sc, ul, vl, h, st)
                     f = cc * fl
                     kt = ck * kl
                     n_it += 1 if it > 0 else 0
@@ -354,7 +347,7 @@ def work_arrays(ndof: int, state_size: int):
 
 
 @njit(cache=True, parallel=True)
-def batch(code, P, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
+def batch(P, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol, max_iter, max_levels,
           robust, n_blocks, status, drift, acc, out):
     """Run the parameter sets ``P`` (runs, n_params) in ``n_blocks`` parallel blocks.
 
@@ -378,7 +371,7 @@ def batch(code, P, count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, to
         lo = (runs * b) // n_blocks
         hi = (runs * (b + 1)) // n_blocks
         for r in range(lo, hi):
-            res = integrate(code, P[r], count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol,
+            res = integrate(P[r], count, s, m, ks, cs, cg, hts, state0, ag, dt, gamma, beta, tol,
                             max_iter, max_levels, robust, False, W, sc, st, sc_save, S, U, F, U, F, E, it, it,
                             drift[r], acc[r], out[r])
             status[r] = res[0]
@@ -396,6 +389,12 @@ from structures import energy as _energy  # noqa: E402
 
 _DEFAULT_MAX_ITER = 50
 _DEFAULT_LEVELS = 6
+
+
+def _kernels(spec):
+    """This module's kernels (:func:`integrate`, :func:`batch`) with the law ``spec`` bound
+    (an instance of this module as a template, :mod:`rrfrei.laws.specialise`)."""
+    return instantiate(__name__, bindings(spec), spec.name)
 
 
 class ConvergenceError(RuntimeError):
@@ -589,9 +588,10 @@ def time_history(
     drift_pk = np.zeros(ndof - 1)
     acc_pk = np.zeros(ndof - 1)
     out = np.zeros(N_OUT)
-    status, k = integrate(spec.code, p, float(iso.count), float(iso.length_scale), m, ks, cs, cg, hts,
-                          np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, robust, True,
-                          W, sc, st, sc_save, S, U, VB, A, F, E, iters, levels, drift_pk, acc_pk, out)
+    status, k = _kernels(spec).integrate(
+        p, float(iso.count), float(iso.length_scale), m, ks, cs, cg, hts,
+        np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, robust, True,
+        W, sc, st, sc_save, S, U, VB, A, F, E, iters, levels, drift_pk, acc_pk, out)
     if status != 0:
         raise ConvergenceError(
             f"record {name!r}: the step to t = {k * h:.6g} s (step {k}) failed even in "
@@ -693,7 +693,7 @@ def time_history_batch(
     acc = np.zeros((runs, nst))
     res = np.zeros((runs, N_OUT))
     if runs:
-        batch(spec.code, P, float(iso.count), float(iso.length_scale), m, ks, cs, cg, hts,
+        _kernels(spec).batch(P, float(iso.count), float(iso.length_scale), m, ks, cs, cg, hts,
               np.array(spec.initial_state, dtype=float), ag, h, g, b, t, it, lv, robust, nb, status,
               drift, acc, res)
     ok = status == 0

@@ -11,7 +11,6 @@ from rrfrei import simulate_force
 from rrfrei.energy import cycle_metrics, dissipated_energy
 from rrfrei.laws import get
 from rrfrei.laws.effects import EFFECTS, SLIP_NEVER
-from rrfrei.laws.kernel import step
 from rrfrei.protocols import protocol
 
 PL = {"k_init": 120.0, "qd": 0.6, "alpha1": 0.2, "alpha2": 0.0, "mu": 2.0}
@@ -70,15 +69,15 @@ def test_tangent_is_the_derivative_of_the_force_within_a_step(name, values):
     # commit a history first (loading to 25 mm, back to 5 mm) so history variables are active
     path = np.concatenate([np.linspace(0, 0.025, 60), np.linspace(0.025, 0.005, 40)])
     for u in path:
-        step(spec.code, p, sc, u, 0.0, 1.0, stt)
+        spec.step(p, sc, u, 0.0, 1.0, stt)
         sc[:] = stt
     dt, u0 = 0.05, 0.006
     for u in (u0, 0.0265):
         v = (u - path[-1]) / dt
-        f, k, _ = step(spec.code, p, sc, u, v, dt, stt.copy())
+        f, k, _ = spec.step(p, sc, u, v, dt, stt.copy())
         h = 1e-7
-        fp, _, _ = step(spec.code, p, sc, u + h, (u + h - path[-1]) / dt, dt, stt.copy())
-        fm, _, _ = step(spec.code, p, sc, u - h, (u - h - path[-1]) / dt, dt, stt.copy())
+        fp, _, _ = spec.step(p, sc, u + h, (u + h - path[-1]) / dt, dt, stt.copy())
+        fm, _, _ = spec.step(p, sc, u - h, (u - h - path[-1]) / dt, dt, stt.copy())
         assert k == pytest.approx((fp - fm) / (2 * h), rel=1e-4, abs=1e-6)
 
 

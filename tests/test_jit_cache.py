@@ -1,10 +1,12 @@
 """Compiled code is never stale: an edit to any kernel source reaches every compiled caller.
 
 Numba keys a cached function on its own source file only, so a cached caller in another file
-(``dispatch.base_step``/``base_drive`` calling ``plasticity.step``) used to keep the old machine
-code after ``plasticity.py`` changed.  Reproduced as it broke: a copy of the package, a warm
-cache, an edit of the elastic branch of one law, then the public functions must change; and
-reverting the edit must bring the original numbers back.
+(then ``dispatch.base_step``/``base_drive`` calling ``plasticity.step``; now the per-law instances
+of the history driver and of the batched likelihood, generated files that inline the law) used to
+keep the old machine code after ``plasticity.py`` changed.  Reproduced as it broke: a copy of the
+package, a warm cache, an edit of the elastic branch of one law, then the public functions must
+change; and reverting the edit must bring the original numbers back.  The same for a law defined
+outside the packages (``tests/_toy_law.py``), which the package-wide source hash does not see.
 """
 
 from __future__ import annotations
@@ -22,29 +24,40 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("rrfrei", "structures", "rubber", "ground_motions")
 
 PROBE = r"""
-import json, numpy as np
+import json, sys, numpy as np
 import rrfrei
-from rrfrei.laws.dispatch import base_step
-u = np.linspace(0.0, 1e-4, 5)              # elastic branch only (u < u_y = 2e-3 m)
-p = dict(k_init=1000.0, qd=2.0, alpha1=0.1, alpha2=0.0, mu=2.0)
-f = rrfrei.simulate_force("plasticity", p, u)
-spec = rrfrei.laws.get("plasticity")
-sc = np.zeros(1); st = np.zeros(1)
-fs, kt, status = base_step(spec.kernel_id, spec.pack(p), sc, 1e-4, 0.0, 1.0, st)
+from rrfrei.calibration import setup_problem
+from rrfrei.io import ShearTest
+law = sys.argv[1] if len(sys.argv) > 1 else "plasticity"
+if law != "plasticity":
+    import _toy_law  # registers the law (defined outside the packages)
+u = np.linspace(0.0, 1e-4, 5)              # elastic branch only (u < u_y = 2e-3 m, d_b = 5e-3 m)
+p = (dict(k_init=1000.0, qd=2.0, alpha1=0.1, alpha2=0.0, mu=2.0) if law == "plasticity"
+     else dict(k=1000.0))
+f = rrfrei.simulate_force(law, p, u)
+spec = rrfrei.laws.get(law)
+fs, kt, status = spec.step(spec.pack(p), np.zeros(spec.state_size), 1e-4, 0.0, 1.0,
+                           np.zeros(spec.state_size))
+ul = np.linspace(0.0, 1e-4, 12)
+prob = setup_problem(ShearTest("probe", np.arange(12.0), ul, 1000.0 * ul), spec)
+F, _ = prob.forces(spec.pack(p)[None, :])  # the batched likelihood kernels (per-law instance)
+theta = np.array([[p[n] for n in prob.free] + [0.01]])
 from rrfrei import _jit_cache
-print(json.dumps({"simulate": float(f[-1]), "base_step": float(fs), "cache": _jit_cache.CACHE_DIR}))
+print(json.dumps({"simulate": float(f[-1]), "base_step": float(fs), "batch": float(F[0, -1]),
+                  "loglik": float(prob.log_likelihood(theta)[0]), "cache": _jit_cache.CACHE_DIR}))
 """
 
 EDIT_FROM = "        return q_tr + k2 * u + nl_f, k0 + k2 + nl_k, 0\n"
 EDIT_TO = "        return 2.0 * (q_tr + k2 * u + nl_f), k0 + k2 + nl_k, 0\n"
 
 
-def _run(tree: Path) -> dict:
+def _run(tree: Path, law: str = "plasticity") -> dict:
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "_RRFREI_NUMBA_CACHE")}
-    env["PYTHONPATH"] = str(tree)
+    env["PYTHONPATH"] = os.pathsep.join([str(tree), str(tree / "tests")])
     env["XDG_CACHE_HOME"] = str(tree / "xdg")
     out = subprocess.run(
-        [sys.executable, "-c", PROBE], cwd=tree, env=env, capture_output=True, text=True, timeout=600
+        [sys.executable, "-c", PROBE, law], cwd=tree, env=env, capture_output=True, text=True,
+        timeout=600,
     )
     assert out.returncode == 0, out.stderr[-3000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -54,6 +67,8 @@ def _run(tree: Path) -> dict:
 def tree(tmp_path):
     for pkg in PACKAGES:
         shutil.copytree(ROOT / pkg, tmp_path / pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    (tmp_path / "tests").mkdir()
+    shutil.copy(ROOT / "tests" / "_toy_law.py", tmp_path / "tests" / "_toy_law.py")
     return tmp_path
 
 
@@ -73,12 +88,44 @@ def test_editing_a_law_reaches_callers_in_other_files_and_reverting_restores_it(
     assert edited["cache"] != before["cache"], "an edited kernel source must select a new cache"
     assert edited["simulate"] == pytest.approx(2.0 * before["simulate"], rel=1e-12)
     assert edited["base_step"] == pytest.approx(2.0 * before["base_step"], rel=1e-12)
+    assert edited["batch"] == pytest.approx(2.0 * before["batch"], rel=1e-12)
+    assert edited["loglik"] != before["loglik"]
 
     law.write_text(source)
     reverted = _run(tree)
     assert reverted["simulate"] == before["simulate"]
     assert reverted["base_step"] == before["base_step"]
+    assert reverted["batch"] == before["batch"]
+    assert reverted["loglik"] == before["loglik"]
     assert not Path(edited["cache"]).exists(), "caches of other source versions are pruned"
+
+
+TOY_FROM = "        return k * u, k, 0\n"
+TOY_TO = "        return 2.0 * k * u, k, 0\n"
+
+
+def test_editing_a_law_outside_the_packages_reaches_its_instances_and_reverting_restores_it(tree):
+    """The package-wide cache key cannot see ``tests/_toy_law.py``; the instances' file names hash
+    the bound law's source (rrfrei.laws.specialise), so the edit still reaches simulate_force and
+    the likelihood, with the same cache folder."""
+    law = tree / "tests" / "_toy_law.py"
+    source = law.read_text()
+    assert TOY_FROM in source, "the probe's edit no longer matches tests/_toy_law.py"
+
+    before = _run(tree, "toy_bilinear")
+    warm = _run(tree, "toy_bilinear")
+    assert warm == before
+    assert before["simulate"] == pytest.approx(1000.0 * 1e-4)
+
+    law.write_text(source.replace(TOY_FROM, TOY_TO))
+    edited = _run(tree, "toy_bilinear")
+    assert edited["cache"] == before["cache"], "the package sources did not change"
+    for key in ("simulate", "base_step", "batch"):
+        assert edited[key] == pytest.approx(2.0 * before[key], rel=1e-12), key
+    assert edited["loglik"] != before["loglik"]
+
+    law.write_text(source)
+    assert _run(tree, "toy_bilinear") == before
 
 
 def test_a_user_set_numba_cache_dir_is_respected(tmp_path):

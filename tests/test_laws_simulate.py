@@ -5,7 +5,7 @@ import pytest
 
 import rrfrei
 from rrfrei.laws import get
-from rrfrei.laws.kernel import run_history
+from rrfrei.laws.specialise import history
 
 BW = dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.0, mu=2.0, eta=1.0, beta=0.5, gamma=0.5)
 U = np.linspace(0.0, 0.02, 20)
@@ -58,14 +58,12 @@ def test_kernel_failure_names_sample_status_and_state():
     ("linear", dict(k=100.0, c=3.0)),
 ])
 def test_whole_history_driver_equals_step_by_step_dispatch(law, p):
-    """The per-law drive loop (fast path) gives the results of the per-step dispatch used for
-    augmented laws and time histories, with time, velocity and substeps: bit-identical, except
+    """The per-law drive loop (fast path) gives the results of the law's step kernel called
+    step by step (as Newmark calls it), with time, velocity and substeps: bit-identical, except
     Bouc-Wen with a non-integer eta, whose history driver solves OpenSees' implicit equation
     with its own guarded solver (``rrfrei.laws.bouc_wen``, "Fast solver") and so lands on the
     same root to rounding, not to the bit (tests/test_bouc_wen_solver.py holds it to
     drive_exact)."""
-    from rrfrei.laws.kernel import step
-
     spec = get(law)
     packed = spec.pack(p)
     t = np.linspace(0.0, 4.0, 81)
@@ -82,7 +80,7 @@ def test_whole_history_driver_equals_step_by_step_dispatch(law, p):
         v, dt_eff = (0.0, 1.0) if i == 0 else (du / dt, dt)
         for j in range(3):
             uj = u[i] if j == 2 else u_prev + du * (j + 1)
-            fj, kj, status = step(spec.code, packed, sc, uj, v, dt_eff, st)
+            fj, kj, status = spec.step(packed, sc, uj, v, dt_eff, st)
             assert status == 0
             sc[:] = st
         if exact:
@@ -93,8 +91,9 @@ def test_whole_history_driver_equals_step_by_step_dispatch(law, p):
         u_prev, t_prev = u[i], t[i]
     force = np.empty_like(u)
     tang = np.empty_like(u)
-    assert run_history(spec.code, packed, np.array(spec.initial_state), u, t, True, 3, force, tang) == (0, -1)
-    assert np.array_equal(force, f)  # run_history is the driver simulate_force calls
+    sc = np.array(spec.initial_state)
+    assert history(spec)(packed, sc, sc.copy(), u, t, True, 3, force, tang) == (0, -1)
+    assert np.array_equal(force, f)  # the law's history driver is what simulate_force calls
 
 
 @pytest.mark.parametrize("law, p, k0", [

@@ -327,7 +327,7 @@ def test_batch_returns_the_peaks_of_single_runs_and_flags_failures():
 
 
 def test_an_augmented_law_with_neutral_effect_is_its_base_law_and_a_real_effect_matters():
-    """Augmented laws run through ``rrfrei.laws.kernel.step`` (not the direct base-law calls)."""
+    """Augmented laws run through their own step instance (rrfrei.laws.effects) inside Newmark."""
     rec = first_seconds("sanfernando", 6.0)
     base = structures.time_history(on_law("three_story", "bouc_wen"), rec)
     params = {**SPECIMEN_PARAMS["bouc_wen"], "deg_rate": 0.0}

@@ -1,8 +1,9 @@
 """Batched Gaussian log-likelihoods of a shear test under any registered law (Numba, parallel).
 
 Model: measured force ``F_i = f(u_1..u_i; theta) + e_i`` where ``f`` is the law driven along the
-measured displacement history (``rrfrei.laws.kernel.run_history``: one implicit update per
-sample, exactly as an OpenSees displacement-controlled analysis) and the residuals ``e`` are
+measured displacement history (the law's whole-history driver,
+:func:`rrfrei.laws.specialise.history`: one implicit update per sample, exactly as an OpenSees
+displacement-controlled analysis) and the residuals ``e`` are
 
 * ``noise="iid"``: independent N(0, sigma^2);
 * ``noise="ar1"``: stationary AR(1), ``e_i = rho e_{i-1} + w_i``, ``w_i ~ N(0, sigma^2)``,
@@ -11,7 +12,9 @@ sample, exactly as an OpenSees displacement-controlled analysis) and the residua
   the joint log-likelihood (Box & Jenkins, *Time Series Analysis*, ch. 7).
 
 The walkers of the ensemble are evaluated in parallel (``prange``), each along the whole history
-with preallocated work rows: no allocation per time step.  A law that fails (status < 0) or a
+with preallocated work rows: no allocation per time step.  The kernels
+(:mod:`rrfrei.calibration._batch`) are a template instantiated per law, with the law's driver
+inlined.  A law that fails (status < 0) or a
 non-positive sigma gives ``-inf``.
 
 Dense records (:data:`DENSE_POINTS`): the law is always driven along the *whole* measured history
@@ -34,11 +37,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit, prange
 
 from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, Prior
-from rrfrei.laws.kernel import run_history
+from rrfrei.laws.specialise import history, instantiate
 
 __all__ = ["Problem", "NOISE_MODELS", "DENSE_POINTS", "LIKELIHOOD_POINTS", "likelihood_points"]
 
@@ -75,58 +77,14 @@ def likelihood_points(n: int, points: int | str | None = "auto") -> np.ndarray:
 
 NOISE_MODELS = ("iid", "ar1")
 _LOG2PI = math.log(2.0 * math.pi)
+BATCH = "rrfrei.calibration._batch"
+"""The template of the batched kernels (``forces_batch``, ``loglik_batch``), bound per law."""
 
 
-@njit(parallel=True, cache=True)
-def forces_batch(code, P, state0, disp, time, use_time, F, T, status):
-    """Model force of every row of ``P`` along ``disp`` into ``F`` (rows), statuses into ``status``."""
-    nw = P.shape[0]
-    for w in prange(nw):
-        s, _ = run_history(code, P[w], state0, disp, time, use_time, 1, F[w], T[w])
-        status[w] = s
-
-
-@njit(parallel=True, cache=True)
-def loglik_batch(code, P, state0, disp, time, use_time, obs, idx, sigma, rho, ar1, F, T, out):
-    """Joint log-likelihood of every row of ``P`` (with its sigma, rho) into ``out``.
-
-    The law runs along the whole ``disp``; the residuals are taken at the samples ``idx`` only
-    (``obs`` holds the measured forces at those samples).
-    """
-    nw = P.shape[0]
-    n = idx.shape[0]
-    for w in prange(nw):
-        s = sigma[w]
-        if not s > 0.0:
-            out[w] = -np.inf
-            continue
-        st, _ = run_history(code, P[w], state0, disp, time, use_time, 1, F[w], T[w])
-        if st != 0:
-            out[w] = -np.inf
-            continue
-        inv = 1.0 / (s * s)
-        acc = 0.0
-        if ar1:
-            r = rho[w]
-            if not abs(r) < 1.0:
-                out[w] = -np.inf
-                continue
-            e0 = obs[0] - F[w, idx[0]]
-            var0 = s * s / (1.0 - r * r)
-            acc = -0.5 * e0 * e0 / var0 - 0.5 * math.log(var0) - 0.5 * _LOG2PI
-            prev = e0
-            for i in range(1, n):
-                e = obs[i] - F[w, idx[i]]
-                innov = e - r * prev
-                acc += -0.5 * innov * innov * inv
-                prev = e
-            acc += (n - 1) * (-math.log(s) - 0.5 * _LOG2PI)
-        else:
-            for i in range(n):
-                e = obs[i] - F[w, idx[i]]
-                acc += -0.5 * e * e * inv
-            acc += n * (-math.log(s) - 0.5 * _LOG2PI)
-        out[w] = acc if np.isfinite(acc) else -np.inf
+def batch_kernels(spec: LawSpec):
+    """The batched kernels of law ``spec``: the instance of :data:`BATCH` bound to the law's
+    whole-history driver (:func:`rrfrei.laws.specialise.history`)."""
+    return instantiate(BATCH, {"law_drive": history(spec)}, spec.name)
 
 
 def pointwise_from_residuals(resid: np.ndarray, sigma: np.ndarray, rho: np.ndarray | None) -> np.ndarray:
@@ -184,7 +142,6 @@ class Problem:
         self._use_time = bool(self.test.has_time)
         self._time = np.ascontiguousarray(self.test.time if self._use_time else np.zeros_like(self._disp))
         self._state0 = np.array(self.spec.initial_state, dtype=float)
-        self._code = np.array(self.spec.code)
         bounds = [self.spec.bounds((n,))[0] for n in self.free]
         self._lower = np.array([b[0] for b in bounds] + [0.0] + ([-1.0] if self.noise == "ar1" else []))
         self._upper = np.array([b[1] for b in bounds] + [np.inf] + ([1.0] if self.noise == "ar1" else []))
@@ -271,9 +228,9 @@ class Problem:
         F = np.empty((nw, self.n_points))
         T = np.empty_like(F)
         out = np.empty(nw)
-        loglik_batch(self._code, P, self._state0, self._disp, self._time, self._use_time, self._obs_l,
-                     self.lik_idx, sigma, rho if rho is not None else np.zeros(nw), rho is not None,
-                     F, T, out)
+        batch_kernels(self.spec).loglik_batch(
+            P, self._state0, self._disp, self._time, self._use_time, self._obs_l, self.lik_idx,
+            sigma, rho if rho is not None else np.zeros(nw), rho is not None, F, T, out)
         self.n_evals += nw
         return out
 
@@ -300,7 +257,7 @@ class Problem:
         F = np.empty((P.shape[0], disp.size))
         T = np.empty_like(F)
         status = np.zeros(P.shape[0], dtype=np.int64)
-        forces_batch(self._code, P, self._state0, disp, time, use_time, F, T, status)
+        batch_kernels(self.spec).forces_batch(P, self._state0, disp, time, use_time, F, T, status)
         F[status != 0] = np.nan
         return F, status
 

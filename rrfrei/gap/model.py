@@ -48,7 +48,7 @@ from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap.catalogue import CATALOGUE, Scales
 from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, get
-from rrfrei.laws.kernel import run_history
+from rrfrei.laws.specialise import history
 
 __all__ = ["GapModel", "FitResult", "Prediction", "IsolatorModel", "IsolatorFit", "white_noise",
            "test_scales"]
@@ -154,8 +154,8 @@ def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
     n = len(test)
     F = np.empty(n) if out is None else out
     T = np.empty(n)
-    status, _ = run_history(spec.code, p, np.array(spec.initial_state), test.disp, test.time,
-                            bool(test.has_time), 1, F, T)
+    sc = np.array(spec.initial_state, dtype=float)
+    status, _ = history(spec)(p, sc, sc.copy(), test.disp, test.time, bool(test.has_time), 1, F, T)
     return int(status), F
 
 

@@ -28,7 +28,7 @@ def powabs(x, e):
 
 @njit(cache=True, inline="always")
 def increment(i, disp, time, use_time, substeps, u_prev, t_prev):
-    """(du, v, dt) of sub-increment steps into sample ``i`` (see :func:`rrfrei.laws.kernel.drive`).
+    """(du, v, dt) of sub-increment steps into sample ``i`` (see :func:`rrfrei.laws._history.drive`).
 
     ``du`` is the displacement sub-increment [m], ``v`` the velocity [m/s] (0 in statics and at
     the first sample), ``dt`` the sub-step [s] (1.0 in statics, as OpenSees' pseudo-time).

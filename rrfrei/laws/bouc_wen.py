@@ -127,8 +127,6 @@ from rrfrei.laws._util import commit, increment, powabs, sgn
 from rrfrei.laws.plasticity import PARAMS as _PLASTICITY_PARAMS
 from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
 
-KERNEL_ID = 2
-
 A = 1.0
 MAX_ITER = 25
 TOL = 1e-12
@@ -233,51 +231,18 @@ def _check(p: np.ndarray) -> None:
         )
 
 
-SPEC = register(
-    LawSpec(
-        name="bouc_wen",
-        kernel_id=KERNEL_ID,
-        params=(_PLASTICITY_PARAMS[0], replace(_PLASTICITY_PARAMS[1], lower=1e-9))
-        + _PLASTICITY_PARAMS[2:]
-        + (
-            ParamSpec("eta", "-", 0.1, 10.0, "Bouc-Wen exponent", Prior("uniform", 0.5, 5.0)),
-            ParamSpec("beta", "-", 0.0, 5.0, "coefficient of the sign-dependent term",
-                      Prior("uniform", 0.0, 2.0), hold=0.5),
-            ParamSpec("gamma", "-", -5.0, 5.0, "coefficient of the constant term",
-                      Prior("uniform", -1.0, 1.0)),
-        ),
-        state_size=5,
-        description="OpenSees ElastomericBearingBoucWen: smooth Bouc-Wen hysteresis (A = 1).",
-        opensees_element="elastomericBearingBoucWen",
-        check=_check,
-    )
-)
+def __getattr__(attr: str):
+    """``drive_exact``: OpenSees' own iteration (:func:`step`) at every sub-step of a history,
+    the reference the fast :func:`drive` is tested against: the generic history driver
+    (:mod:`rrfrei.laws._history`) instantiated with :func:`step` (same contract as
+    :func:`drive`)."""
+    if attr == "drive_exact":
+        from rrfrei.laws import specialise
 
-
-@njit(cache=True, error_model="numpy")
-def drive_exact(p, sc, st, disp, time, use_time, substeps, force, tangent):
-    """OpenSees' own iteration (:func:`step`) at every sub-step of a history: the reference the
-    fast :func:`drive` is tested against (same contract as :func:`rrfrei.laws.kernel.drive`)."""
-    u_prev = 0.0
-    t_prev = time[0] if use_time else 0.0
-    for i in range(disp.shape[0]):
-        du, v, dt = increment(i, disp, time, use_time, substeps, u_prev, t_prev)
-        f = 0.0
-        kt = 0.0
-        for j in range(substeps):
-            u = disp[i] if j == substeps - 1 else u_prev + du * (j + 1)
-            f, kt, status = step(p, sc, u, v, dt, st)
-            if status != 0:
-                return status, i
-            if not (np.isfinite(f) and np.isfinite(kt)):
-                return -3, i
-            commit(sc, st)
-        force[i] = f
-        tangent[i] = kt
-        u_prev = disp[i]
-        if use_time:
-            t_prev = time[i]
-    return 0, -1
+        return specialise.instantiate(
+            specialise.HISTORY, {"law_step": step, "law_step_robust": step_robust}, "bouc_wen"
+        ).drive
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
 
 
 # --------------------------------------------------------------------------------------------
@@ -575,7 +540,7 @@ def _fast_run(p, c, lim, sc, st, disp, k, substeps, force, tangent):
 
 @njit(cache=True, error_model="numpy")
 def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
-    """Whole-history driver of this law (contract of :func:`rrfrei.laws.kernel.drive`).
+    """Whole-history driver of this law (contract of :func:`rrfrei.laws._history.drive`).
 
     Runs the fast solver (module docstring, "Fast solver") where its guard certifies that
     OpenSees' Newton iteration converges to the same root, and :func:`step` elsewhere; integer
@@ -828,3 +793,27 @@ def drive_robust(p, sc, st, disp, time, use_time, substeps, force, tangent, devi
             force[i] = f
             tangent[i] = kt
         k += 1
+
+
+SPEC = register(
+    LawSpec(
+        name="bouc_wen",
+        step=step,
+        step_robust=step_robust,
+        drive=drive,
+        drive_robust=drive_robust,
+        params=(_PLASTICITY_PARAMS[0], replace(_PLASTICITY_PARAMS[1], lower=1e-9))
+        + _PLASTICITY_PARAMS[2:]
+        + (
+            ParamSpec("eta", "-", 0.1, 10.0, "Bouc-Wen exponent", Prior("uniform", 0.5, 5.0)),
+            ParamSpec("beta", "-", 0.0, 5.0, "coefficient of the sign-dependent term",
+                      Prior("uniform", 0.0, 2.0), hold=0.5),
+            ParamSpec("gamma", "-", -5.0, 5.0, "coefficient of the constant term",
+                      Prior("uniform", -1.0, 1.0)),
+        ),
+        state_size=5,
+        description="OpenSees ElastomericBearingBoucWen: smooth Bouc-Wen hysteresis (A = 1).",
+        opensees_element="elastomericBearingBoucWen",
+        check=_check,
+    )
+)

@@ -36,13 +36,10 @@ State (float64[4])::
     [3] dk  tangent of the last call minus the initial tangent k0 + ke [kN/m]
 """
 
-import numpy as np
 from numba import njit
 
-from rrfrei.laws._util import commit, increment, sgn
+from rrfrei.laws._util import sgn
 from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
-
-KERNEL_ID = 3
 
 PI_OPENSEES = 3.14159
 """The ``PI`` macro of ElastomericX.cpp / HDR.cpp (``3.14159L``), used instead of math.pi."""
@@ -110,35 +107,10 @@ def step(p, sc, u, v, dt, st):
     return q, kt, 0
 
 
-@njit(cache=True, error_model="numpy")
-def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
-    """Whole-history driver of this law (contract of :func:`rrfrei.laws.kernel.drive`)."""
-    u_prev = 0.0
-    t_prev = time[0] if use_time else 0.0
-    for i in range(disp.shape[0]):
-        du, v, dt = increment(i, disp, time, use_time, substeps, u_prev, t_prev)
-        f = 0.0
-        kt = 0.0
-        for j in range(substeps):
-            u = disp[i] if j == substeps - 1 else u_prev + du * (j + 1)
-            f, kt, status = step(p, sc, u, v, dt, st)
-            if status != 0:
-                return status, i
-            if not (np.isfinite(f) and np.isfinite(kt)):
-                return -3, i
-            commit(sc, st)
-        force[i] = f
-        tangent[i] = kt
-        u_prev = disp[i]
-        if use_time:
-            t_prev = time[i]
-    return 0, -1
-
-
 SPEC = register(
     LawSpec(
         name="elastomeric_x",
-        kernel_id=KERNEL_ID,
+        step=step,
         params=(
             ParamSpec("fy", "kN", 1e-9, 1e6,
                       "characteristic strength Qd (OpenSees' name Fy)", Prior("loguniform", 1e-2, 1e3)),

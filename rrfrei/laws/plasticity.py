@@ -19,10 +19,8 @@ elastic branch ("sticky" trial variable).
 import numpy as np
 from numba import njit
 
-from rrfrei.laws._util import commit, increment, powabs, sgn
+from rrfrei.laws._util import powabs, sgn
 from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
-
-KERNEL_ID = 1
 
 
 @njit(cache=True, error_model="numpy")
@@ -47,31 +45,6 @@ def step(p, sc, u, v, dt, st):
     return qd * s + k2 * u + nl_f, k2 + nl_k, 0
 
 
-@njit(cache=True, error_model="numpy")
-def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
-    """Whole-history driver of this law (contract of :func:`rrfrei.laws.kernel.drive`)."""
-    u_prev = 0.0
-    t_prev = time[0] if use_time else 0.0
-    for i in range(disp.shape[0]):
-        du, v, dt = increment(i, disp, time, use_time, substeps, u_prev, t_prev)
-        f = 0.0
-        kt = 0.0
-        for j in range(substeps):
-            u = disp[i] if j == substeps - 1 else u_prev + du * (j + 1)
-            f, kt, status = step(p, sc, u, v, dt, st)
-            if status != 0:
-                return status, i
-            if not (np.isfinite(f) and np.isfinite(kt)):
-                return -3, i
-            commit(sc, st)
-        force[i] = f
-        tangent[i] = kt
-        u_prev = disp[i]
-        if use_time:
-            t_prev = time[i]
-    return 0, -1
-
-
 def _check(p: np.ndarray) -> None:
     if p[2] >= 1.0:
         raise ValueError(f"law 'plasticity': alpha1 = {p[2]:g} must be < 1 (k0 = (1-alpha1) k_init > 0)")
@@ -92,8 +65,9 @@ PARAMS = (
 SPEC = register(
     LawSpec(
         name="plasticity",
-        kernel_id=KERNEL_ID,
+        step=step,
         params=PARAMS,
+        local_iteration=False,
         state_size=1,
         description="OpenSees ElastomericBearingPlasticity: elastic-plastic with hardening.",
         opensees_element="elastomericBearingPlasticity",

@@ -1,12 +1,14 @@
-"""Registry of isolator shear laws: parameter specs, units, bounds and default priors.
+"""Registry of isolator shear laws: the one place a law is declared.
 
 Everything downstream (simulation, calibration, propagation, gap diagnosis, CLI) reads a law's
-parameter names, units, bounds and priors from its :class:`LawSpec`; nothing switches on law
-names by hand.
+parameter names, units, bounds, priors *and kernels* from its :class:`LawSpec`; nothing switches
+on law names or ids by hand.  A law is one module of the :mod:`rrfrei.laws` package (or any
+module that calls :func:`register`) with one registry entry; the package's modules are
+discovered on the first lookup (:func:`get`, :func:`names`), so no import list names them.
 
 Kernel contract
 ---------------
-Every law module provides a Numba step kernel::
+Every law provides a Numba step kernel (``LawSpec.step``)::
 
     step(p, sc, u, v, dt, st) -> (force, tangent, status)
 
@@ -18,11 +20,12 @@ Every law module provides a Numba step kernel::
 * ``st``     trial state: on entry the previous trial (OpenSees keeps trial variables between
   ``update()`` calls), on exit the new trial state;
 * returns the shear force [kN], the tangent dF/du [kN/m] and a status (0 = converged, < 0 =
-  failure; see :data:`STATUS_MESSAGES`).
+  failure; see :data:`STATUS_MESSAGES`; > 0 only from a robust local solve, a converged step
+  that deviates from OpenSees).
 
-A driver commits by copying ``st`` into ``sc`` once a step has converged.  The kernels are
-dispatched by integer ``code`` arrays built here (:attr:`LawSpec.code`), see
-:mod:`rrfrei.laws.kernel`.
+A driver commits by copying ``st`` into ``sc`` once a step has converged.  Kernels that call a
+law (history drivers, the batched likelihood, Newmark) are templates instantiated per law from
+these fields (:mod:`rrfrei.laws.specialise`), so only the laws a command uses are compiled.
 """
 
 from __future__ import annotations
@@ -32,13 +35,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-
-# Layout of the int64 dispatch code of a (possibly augmented) law.
-CODE_LEN = 16
-MAX_EFFECTS = 4
-# code[0] base law kernel id, code[1] number of base params, code[2] base state size,
-# code[3] number of effects, then per effect i: code[4+3i] effect id, code[5+3i] offset of its
-# params in p, code[6+3i] offset of its state in the state vector.
 
 STATUS_MESSAGES = {
     0: "converged",
@@ -155,35 +151,63 @@ class ParamSpec:
 
 @dataclass(frozen=True)
 class LawSpec:
-    """A shear law: its parameters, state size and kernel id.
+    """A shear law: its parameters, state size and kernels.
 
-    Parameters are in kN, m, s.  ``check`` is an optional callable taking the packed parameter
-    array and raising ValueError for cross-parameter constraints.
+    Parameters are in kN, m, s.
+
+    Attributes
+    ----------
+    step : the jitted step kernel (contract in the module docstring).
+    step_robust : optional jitted robust local solve with the same contract (a positive status
+        where it deviated from OpenSees); it enables ``local_solver="robust"``.
+    drive, drive_robust : optional jitted whole-history drivers that replace the ones
+        instantiated from :mod:`rrfrei.laws._history` (same contracts), e.g. a faster solver.
+    local_iteration : False for a closed-form update (``local_solver="robust"`` is then a no-op).
+    check : optional callable taking the packed parameter array and raising ValueError for
+        cross-parameter constraints.
+    effects : names of the effects of an augmented law (:mod:`rrfrei.laws.effects`).
     """
 
     name: str
-    kernel_id: int
     params: tuple[ParamSpec, ...]
     state_size: int
     description: str
+    step: Callable = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
+    step_robust: Callable | None = field(default=None, compare=False, repr=False)
+    drive: Callable | None = field(default=None, compare=False, repr=False)
+    drive_robust: Callable | None = field(default=None, compare=False, repr=False)
     opensees_element: str = ""
     uses_velocity: bool = False
+    local_iteration: bool = True
     check: Callable[[np.ndarray], None] | None = field(default=None, compare=False, repr=False)
     effects: tuple[str, ...] = ()
-    code: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
     initial_state: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
-        if self.code is None:
-            code = np.zeros(CODE_LEN, dtype=np.int64)
-            code[0] = self.kernel_id
-            code[1] = len(self.params)
-            code[2] = self.state_size
-            object.__setattr__(self, "code", code)
-        self.code.setflags(write=False)
+        if not callable(self.step):
+            raise ValueError(
+                f"law {self.name!r}: step = {self.step!r} is not a kernel; expected the law's "
+                "jitted step(p, sc, u, v, dt, st) -> (force, tangent, status)"
+            )
+        for name in ("step_robust", "drive", "drive_robust"):
+            value = getattr(self, name)
+            if value is not None and not callable(value):
+                raise ValueError(f"law {self.name!r}: {name} = {value!r} is not a kernel (or None)")
         if self.initial_state is None:
             object.__setattr__(self, "initial_state", np.zeros(self.state_size))
+        if np.shape(self.initial_state) != (self.state_size,):
+            raise ValueError(
+                f"law {self.name!r}: initial_state has shape {np.shape(self.initial_state)}, "
+                f"expected ({self.state_size},) (state_size)"
+            )
         self.initial_state.setflags(write=False)
+
+    def __reduce_ex__(self, protocol):
+        """A registered law pickles by name (its kernels live in its module; an augmented law's
+        step in a generated file), so another process rebuilds it from the registry."""
+        if _REGISTRY.get(self.name) is self:
+            return (get, (self.name,))
+        return super().__reduce_ex__(protocol)
 
     # --- names -------------------------------------------------------------------------
     @property
@@ -321,6 +345,7 @@ class LawSpec:
 
 
 _REGISTRY: dict[str, LawSpec] = {}
+_DISCOVERED = False
 
 
 def register(spec: LawSpec) -> LawSpec:
@@ -331,17 +356,39 @@ def register(spec: LawSpec) -> LawSpec:
     return spec
 
 
+def _discover() -> None:
+    """Import every module of the :mod:`rrfrei.laws` package once, so each registers its law.
+
+    Modules whose name starts with ``_`` (helpers, templates) and subpackages are skipped.
+    """
+    global _DISCOVERED
+    if _DISCOVERED:
+        return
+    _DISCOVERED = True
+    import importlib
+    import pkgutil
+
+    import rrfrei.laws as package
+
+    for info in pkgutil.iter_modules(package.__path__):
+        if not info.ispkg and not info.name.startswith("_"):
+            importlib.import_module(f"{package.__name__}.{info.name}")
+
+
 def get(name: str | LawSpec) -> LawSpec:
     """Return the spec of law ``name``.
 
     Augmented laws are named ``base+effect[+effect...]`` (e.g. ``bouc_wen+rate``); they are
-    composed on first use from the effect catalogue (:mod:`rrfrei.laws.effects`).
+    composed on first use from the effect table (:mod:`rrfrei.laws.effects`).
     """
     if isinstance(name, LawSpec):
         return name
     if not isinstance(name, str):
         raise ValueError(f"a law name must be a string, got {name!r}")
     key = name.strip()
+    if key in _REGISTRY:
+        return _REGISTRY[key]
+    _discover()
     if key in _REGISTRY:
         return _REGISTRY[key]
     if "+" in key:
@@ -354,12 +401,32 @@ def get(name: str | LawSpec) -> LawSpec:
     raise ValueError(f"unknown law {name!r}; available laws: {', '.join(names())}")
 
 
+def _listing_order(spec: LawSpec) -> tuple:
+    """OpenSees laws first, then the others; simplest (fewest parameters) first, then by name."""
+    return (not spec.opensees_element, len(spec.params), spec.name)
+
+
 def names(*, include_linear: bool = True) -> tuple[str, ...]:
-    """Names of the registered base laws."""
-    out = [n for n, s in _REGISTRY.items() if not s.effects]
+    """Names of the registered base laws, in a fixed order (independent of import order).
+
+    The order: laws that port an OpenSees element first, then the others; within each group
+    the simplest law (fewest parameters) first, then by name.
+    """
+    _discover()
+    out = [s.name for s in sorted((s for s in _REGISTRY.values() if not s.effects),
+                                  key=_listing_order)]
     if not include_linear:
         out = [n for n in out if n != "linear"]
     return tuple(out)
 
 
-OPENSEES_LAWS = ("plasticity", "bouc_wen", "elastomeric_x", "hdr")
+def opensees_laws() -> tuple[str, ...]:
+    """Names of the base laws that port an OpenSees element (``opensees_element`` set), in
+    :func:`names` order: the laws compared against openseespy."""
+    return tuple(n for n in names() if _REGISTRY[n].opensees_element)
+
+
+def __getattr__(attr: str):
+    if attr == "OPENSEES_LAWS":  # read from the table on first use (module __getattr__)
+        return opensees_laws()
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")

@@ -34,6 +34,7 @@ import hashlib
 import importlib
 import importlib.util
 import inspect
+import math
 import os
 import re
 import sys
@@ -43,9 +44,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["bindings", "generated_dir", "instantiate", "unbound"]
+__all__ = ["bindings", "generated_dir", "history", "instantiate", "unbound"]
 
-_LOCK = threading.Lock()
+_LOCK = threading.RLock()  # re-entrant: an instance may instantiate while it imports
 _INSTANCES: dict[tuple, ModuleType] = {}
 _PKG = "rrfrei._generated"
 
@@ -96,13 +97,26 @@ def _import_line(slot: str, fn) -> tuple[str, str]:
     return f"from {module} import {name} as {slot}  # noqa: E402,F401", _file_hash(src)
 
 
+def _const_line(slot: str, value) -> str:
+    """``<slot> = <value>`` for a constant binding (bool, int or float)."""
+    if isinstance(value, bool) or isinstance(value, (int, float)) and math.isfinite(value):
+        return f"{slot} = {value!r}  # noqa: E402"
+    raise ValueError(f"slot {slot!r}: constant {value!r} must be a bool, an int or a finite float")
+
+
+def _is_const(value) -> bool:
+    return isinstance(value, (bool, int, float))
+
+
 def instantiate(template: str, bindings: Mapping[str, object], key: str) -> ModuleType:
     """The module ``template`` with its slots bound to ``bindings``.
 
     Parameters
     ----------
     template : dotted name of the template module (it must define ``SLOTS``).
-    bindings : slot name -> jitted (or plain) module-level function; every slot must be bound.
+    bindings : slot name -> jitted (or plain) module-level function, or a constant (bool, int,
+        float: Numba freezes a global, so e.g. an offset into the parameter vector costs
+        nothing); every slot must be bound.
     key : a readable tag for the file name (e.g. the law name); the identity of an instance is
         the hash of its text, not the key.
 
@@ -118,7 +132,10 @@ def instantiate(template: str, bindings: Mapping[str, object], key: str) -> Modu
         raise ValueError(
             f"template {template!r} has slots {slots}; missing bindings {missing}, unknown {extra}"
         )
-    ident = (template, tuple((s, id(bindings[s])) for s in slots))
+    ident = (template, tuple(
+        (s, (type(bindings[s]).__name__, bindings[s]) if _is_const(bindings[s]) else id(bindings[s]))
+        for s in slots
+    ))
     with _LOCK:
         hit = _INSTANCES.get(ident)
         if hit is not None:
@@ -128,6 +145,9 @@ def instantiate(template: str, bindings: Mapping[str, object], key: str) -> Modu
         lines = []
         hashes = []
         for s in slots:
+            if _is_const(bindings[s]):
+                lines.append(_const_line(s, bindings[s]))
+                continue
             line, h = _import_line(s, bindings[s])
             lines.append(line)
             hashes.append(f"# {s}: source sha256 {h}")
@@ -161,13 +181,36 @@ def bindings(spec) -> dict[str, object]:
     """Slot bindings of a law for templates that call it: ``law_step`` and ``law_step_robust``.
 
     Both are ``(p, sc, u, v, dt, st) -> (force, tangent, status)`` (contract in
-    :mod:`rrfrei.laws.registry`); ``law_step_robust`` is the law's robust local solve where it
-    has one (it may return a positive status where it deviated from OpenSees), else its step.
-
-    Transitional: base laws only, found by module name.  To be replaced by fields of the law's
-    registry entry (issue 13.1), with augmented laws instantiated from a template.
+    :mod:`rrfrei.laws.registry`), read from the law's registry entry: ``LawSpec.step`` and
+    ``LawSpec.step_robust`` (the law's robust local solve where it has one, which may return a
+    positive status where it deviated from OpenSees; else its step).  An augmented law's step is
+    itself an instance (:mod:`rrfrei.laws.effects`), so every law binds the same way.
     """
-    if spec.effects:
-        raise NotImplementedError(f"augmented law {spec.name!r}: no specialised step yet")
-    mod = importlib.import_module(f"rrfrei.laws.{spec.name}")
-    return {"law_step": mod.step, "law_step_robust": getattr(mod, "step_robust", mod.step)}
+    return {"law_step": spec.step, "law_step_robust": spec.step_robust or spec.step}
+
+
+HISTORY = "rrfrei.laws._history"
+"""The template of the whole-history drivers (:mod:`rrfrei.laws._history`)."""
+
+
+def history(spec, robust: bool = False):
+    """The law's whole-history driver (jitted).
+
+    ``drive(p, sc, st, disp, time, use_time, substeps, force, tangent) -> (status, index)``, or
+    with ``robust`` ``drive_robust(..., deviated)`` (contracts in :mod:`rrfrei.laws._history`):
+    the law's own ``LawSpec.drive`` / ``LawSpec.drive_robust`` where it overrides them (Bouc-Wen's
+    fast solver), else the instance of :data:`HISTORY` bound to the law's step kernels, with the
+    step inlined in the time loop (about twice as fast as a call per step through a dispatch).
+    """
+    hit = _DRIVERS.get((id(spec), robust))
+    if hit is not None and hit[0] is spec:
+        return hit[1]
+    own = spec.drive_robust if robust else spec.drive
+    if own is None:
+        module = instantiate(HISTORY, bindings(spec), spec.name)
+        own = module.drive_robust if robust else module.drive
+    _DRIVERS[(id(spec), robust)] = (spec, own)  # the spec is kept alive: its id stays its own
+    return own
+
+
+_DRIVERS: dict[tuple[int, bool], tuple[object, object]] = {}

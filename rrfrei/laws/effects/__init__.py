@@ -1,0 +1,183 @@
+"""Augmentations ("effects") that wrap any base law's step kernel: the effect table.
+
+An augmented law ``base+effect[+effect...]`` has the base law's parameters followed by each
+effect's parameters, and the base state followed by each effect's state.  Its step kernel is an
+instance of the template :mod:`rrfrei.laws.effects._augment` bound to the base law's step and to
+each effect's kernel with its parameter and state offsets (:func:`compose`), so it has the plain
+step signature of a law (:mod:`rrfrei.laws.registry`) and runs everywhere a law runs.  The
+effects are the catalogue of unmodelled phenomena of the gap diagnosis (issue 7); their metadata
+for screening and fitting lives in :mod:`rrfrei.gap.catalogue`.
+
+One effect is one module of this package that registers one :class:`EffectSpec`
+(:func:`register_effect`); the modules are found when the package is imported, so adding an
+effect edits no other file.
+
+Composition (independent of the order in which effects are named)
+-----------------------------------------------------------------
+With ``f_b, k_b`` the base law's force and tangent at the displacement it sees::
+
+    F = g(u, history) f_b + f_a(u, v)          (scaling effects g, additive effects f_a)
+    K = g k_b + f_b dg/du + df_a/du
+
+``g`` is the product of the scaling effects and ``f_a`` the sum of the additive ones; both are
+accumulated by each effect's ``apply`` kernel, in the order the effects are named.  A *series*
+effect (``slip``) puts a rigid-plastic slider of capacity ``capacity(p)`` in series with the whole
+of that: the inner law sees ``u - u_s``.  Every effect is the base law exactly at its neutral
+parameters (``EffectSpec.neutral``).
+
+Kernels of an effect module
+---------------------------
+* an inner effect: ``apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka) -> (g, dg, fa, ka)``,
+  with ``po`` / ``so`` the offsets of its parameters in ``p`` and of its state in ``sc``/``st``,
+  ``fb`` the base force [kN], ``g, dg`` the scaling so far and its derivative [1/m], ``fa, ka``
+  the additive force [kN] and tangent [kN/m] so far; it writes its trial state into ``st``;
+* a series effect: ``capacity(p, po) -> F_s`` [kN], the slider's capacity; its one state
+  variable (at ``so``) is the slider displacement u_s [m].
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rrfrei.laws.registry import LawSpec, ParamSpec
+
+__all__ = ["EffectSpec", "EFFECTS", "MAX_EFFECTS", "SLIP_NEVER", "compose", "register_effect"]
+
+MAX_EFFECTS = 4
+"""Most effects one augmented law combines (the positions of the template)."""
+
+TEMPLATE = "rrfrei.laws.effects._augment"
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    """An effect: its parameters, state size, a one-line physical meaning and its kernel.
+
+    ``neutral`` holds the parameter values at which the augmented law is the base law exactly.
+    Exactly one of ``apply`` (an inner effect: scaling or additive) and ``capacity`` (a series
+    rigid-plastic slider, one state variable) is given; see the package docstring.
+    """
+
+    name: str
+    params: tuple[ParamSpec, ...]
+    state_size: int
+    description: str
+    neutral: tuple[float, ...] = ()
+    apply: Callable | None = field(default=None, compare=False, repr=False)
+    capacity: Callable | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if (self.apply is None) == (self.capacity is None):
+            raise ValueError(
+                f"effect {self.name!r}: give exactly one kernel, apply (inner effect) or capacity "
+                "(series slider)"
+            )
+        if self.capacity is not None and self.state_size != 1:
+            raise ValueError(
+                f"effect {self.name!r}: a series slider has state_size 1 (its displacement), "
+                f"got {self.state_size}"
+            )
+        if len(self.neutral) != len(self.params):
+            raise ValueError(
+                f"effect {self.name!r}: neutral has {len(self.neutral)} values for "
+                f"{len(self.params)} parameters"
+            )
+
+    @property
+    def series(self) -> bool:
+        return self.capacity is not None
+
+
+EFFECTS: dict[str, EffectSpec] = {}
+
+
+def register_effect(spec: EffectSpec) -> EffectSpec:
+    """Add an effect to the table (names are unique)."""
+    if spec.name in EFFECTS and EFFECTS[spec.name] is not spec:
+        raise ValueError(f"an effect named {spec.name!r} is already registered")
+    EFFECTS[spec.name] = spec
+    return spec
+
+
+def compose(base: LawSpec, effect_names: list[str]) -> LawSpec:
+    """Compose ``base`` with the named effects into a new :class:`LawSpec`."""
+    from rrfrei.laws import specialise
+    from rrfrei.laws.effects import _neutral
+
+    if base.effects:
+        raise ValueError(f"law {base.name!r} is already augmented")
+    if len(effect_names) > MAX_EFFECTS:
+        raise ValueError(f"at most {MAX_EFFECTS} effects can be combined, got {len(effect_names)}")
+    if len(set(effect_names)) != len(effect_names):
+        raise ValueError(f"effects repeat in {effect_names}")
+    params = list(base.params)
+    state = base.state_size
+    init = [np.asarray(base.initial_state)]
+    inner: list[tuple[EffectSpec, int, int]] = []
+    series: list[tuple[EffectSpec, int, int]] = []
+    for name in effect_names:
+        if name not in EFFECTS:
+            raise ValueError(
+                f"unknown effect {name!r}; available effects: {', '.join(EFFECTS) or '(none)'}"
+            )
+        eff = EFFECTS[name]
+        (series if eff.series else inner).append((eff, len(params), state))
+        params.extend(eff.params)
+        state += eff.state_size
+        init.append(np.zeros(eff.state_size))
+    if len(series) > 1:
+        raise ValueError(
+            f"at most one series effect can be combined, got {', '.join(e.name for e, _, _ in series)}"
+        )
+    name = base.name + "".join("+" + n for n in effect_names)
+    binds: dict[str, object] = {"base_step": base.step, "NB": len(base.params),
+                                "NS": base.state_size}
+    for k in range(MAX_EFFECTS):
+        eff, po, so = inner[k] if k < len(inner) else (None, 0, 0)
+        binds[f"effect_{k + 1}"] = eff.apply if eff is not None else _neutral.no_effect
+        binds[f"P_{k + 1}"] = po
+        binds[f"S_{k + 1}"] = so
+    eff, po, so = series[0] if series else (None, 0, 0)
+    binds["HAS_SERIES"] = eff is not None
+    binds["series_capacity"] = eff.capacity if eff is not None else _neutral.no_capacity
+    binds["P_SERIES"] = po
+    binds["S_SERIES"] = so
+    kernels = specialise.instantiate(TEMPLATE, binds, name)
+
+    base_check = base.check
+    nb = len(base.params)
+
+    def _check(p: np.ndarray, _c=base_check, _nb=nb) -> None:
+        if _c is not None:
+            _c(p[:_nb])
+
+    return LawSpec(
+        name=name,
+        step=kernels.step,
+        params=tuple(params),
+        state_size=state,
+        description=base.description + " Augmented with " + ", ".join(effect_names) + ".",
+        opensees_element="",
+        uses_velocity=True,
+        check=_check,
+        effects=tuple(effect_names),
+        initial_state=np.concatenate(init),
+    )
+
+
+def _discover() -> None:
+    """Import every module of this package (not those starting with ``_``): each registers one
+    effect."""
+    for info in pkgutil.iter_modules(__path__):
+        if not info.ispkg and not info.name.startswith("_"):
+            importlib.import_module(f"{__name__}.{info.name}")
+
+
+_discover()
+
+from rrfrei.laws.effects.slip import SLIP_NEVER  # noqa: E402  (re-exported)

@@ -1,0 +1,144 @@
+"""Template of an augmented law's step kernel (see :mod:`rrfrei.laws.effects`).
+
+Slots, bound per augmented law by :func:`rrfrei.laws.effects.compose`:
+
+* ``base_step``: the base law's step; ``NB``, ``NS``: its number of parameters and state size
+  (the base law sees ``p[:NB]``, ``sc[:NS]``, ``st[:NS]``);
+* ``effect_k``, ``P_k``, ``S_k`` (k = 1..4): the ``apply`` kernel of the k-th inner effect in the
+  order named, with the offsets of its parameters and state (unused positions bound to
+  :func:`rrfrei.laws.effects._neutral.no_effect`);
+* ``HAS_SERIES``, ``series_capacity``, ``P_SERIES``, ``S_SERIES``: the series slider, if any.
+
+The offsets are constants of the instance, so the compiled step is as direct as a hand-written
+one: no effect ids, no loop over a code array.
+"""
+
+import numpy as np
+from numba import njit
+
+from rrfrei.laws.specialise import unbound
+
+SLOTS = (
+    "base_step", "NB", "NS",
+    "effect_1", "P_1", "S_1",
+    "effect_2", "P_2", "S_2",
+    "effect_3", "P_3", "S_3",
+    "effect_4", "P_4", "S_4",
+    "HAS_SERIES", "series_capacity", "P_SERIES", "S_SERIES",
+)
+base_step = unbound("base_step")
+effect_1 = unbound("effect_1")
+effect_2 = unbound("effect_2")
+effect_3 = unbound("effect_3")
+effect_4 = unbound("effect_4")
+series_capacity = unbound("series_capacity")
+NB = NS = P_1 = S_1 = P_2 = S_2 = P_3 = S_3 = P_4 = S_4 = P_SERIES = S_SERIES = 0
+HAS_SERIES = False
+
+
+@njit(cache=True)
+def inner(p, sc, u, v, dt, st):
+    """Base law with every inner effect (the series slider excluded): F = g f_b + f_a."""
+    fb, kb, status = base_step(p[:NB], sc[:NS], u, v, dt, st[:NS])
+    if status != 0:
+        return fb, kb, status
+    g = 1.0
+    dg = 0.0
+    fa = 0.0
+    ka = 0.0
+    g, dg, fa, ka = effect_1(p, P_1, sc, st, S_1, u, v, dt, fb, g, dg, fa, ka)
+    g, dg, fa, ka = effect_2(p, P_2, sc, st, S_2, u, v, dt, fb, g, dg, fa, ka)
+    g, dg, fa, ka = effect_3(p, P_3, sc, st, S_3, u, v, dt, fb, g, dg, fa, ka)
+    g, dg, fa, ka = effect_4(p, P_4, sc, st, S_4, u, v, dt, fb, g, dg, fa, ka)
+    return g * fb + fa, g * kb + fb * dg + ka, 0
+
+
+@njit(cache=True)
+def _inner_fresh(p, sc, x, v, dt, st):
+    """:func:`inner` from the committed state: the slider search evaluates the inner law at
+    several trial points, and a base law that keeps a "sticky" trial variable (OpenSees
+    plasticity keeps the trial u_p in the elastic branch) must not carry one trial into the
+    next."""
+    us = st[S_SERIES]
+    st[:] = sc
+    st[S_SERIES] = us
+    return inner(p, sc, x, v, dt, st)
+
+
+@njit(cache=True)
+def _slide(p, sc, u, v, dt, st):
+    """The inner law in series with a rigid-plastic slider of capacity ``series_capacity``:
+    while |F| < F_s it sticks, else u_s moves so that |F| = F_s (safeguarded Newton on the
+    inner law, then bisection)."""
+    fs = series_capacity(p, P_SERIES)
+    so = S_SERIES
+    us = sc[so]
+    st[so] = us
+    x = u - us
+    f, kt, status = inner(p, sc, x, v, dt, st)
+    if status != 0 or abs(f) <= fs:
+        return f, kt, status
+    # sliding: find the inner displacement x with |F(x)| = fs between x (|F| > fs) and a point
+    # back towards the committed inner displacement where |F| <= fs
+    s = 1.0 if f > 0.0 else -1.0
+    target = s * fs
+    tol = 1e-12 * max(fs, 1.0) + 1e-9 * fs
+    hi = x  # s * (F - target) > 0 here
+    lo = x
+    step = max(abs(u - us), 1e-9)
+    found = False
+    # safeguarded Newton first (one inner call per iteration)
+    xn = x
+    fn = f
+    kn = kt
+    for _ in range(30):
+        if abs(fn - target) <= tol:
+            found = True
+            break
+        if s * (fn - target) > 0.0:
+            hi = xn
+        if kn > 0.0:
+            xt = xn - (fn - target) / kn
+        else:
+            break
+        if not np.isfinite(xt):
+            break
+        xn = xt
+        fn, kn, status = _inner_fresh(p, sc, xn, v, dt, st)
+        if status != 0:
+            return fn, kn, status
+    if not found:
+        # bracket then bisect
+        lo = hi - s * step
+        for _ in range(80):
+            fl, kl, status = _inner_fresh(p, sc, lo, v, dt, st)
+            if status != 0:
+                return fl, kl, status
+            if s * (fl - target) <= 0.0:
+                break
+            step *= 2.0
+            lo = hi - s * step
+        else:
+            return fl, kl, -2
+        for _ in range(200):
+            xn = 0.5 * (lo + hi)
+            fn, kn, status = _inner_fresh(p, sc, xn, v, dt, st)
+            if status != 0:
+                return fn, kn, status
+            if s * (fn - target) > 0.0:
+                hi = xn
+            else:
+                lo = xn
+            if abs(fn - target) <= tol or abs(hi - lo) <= 1e-15 * max(abs(hi), 1e-3):
+                break
+    st[so] = u - xn
+    return target, 0.0, 0
+
+
+@njit(cache=True)
+def step(p, sc, u, v, dt, st):
+    """Step of the augmented law: (force [kN], tangent [kN/m], status); contract of the
+    registry."""
+    if HAS_SERIES:
+        return _slide(p, sc, u, v, dt, st)
+    return inner(p, sc, u, v, dt, st)

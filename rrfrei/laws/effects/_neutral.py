@@ -1,0 +1,15 @@
+"""Kernels that bind the unused positions of the augmentation template: they change nothing."""
+
+from numba import njit
+
+
+@njit(cache=True, inline="always")
+def no_effect(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+    """An empty inner-effect position: (g, dg, fa, ka) unchanged."""
+    return g, dg, fa, ka
+
+
+@njit(cache=True, inline="always")
+def no_capacity(p, po):
+    """The series position of a law without a series effect (never called)."""
+    return 0.0

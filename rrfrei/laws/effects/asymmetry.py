@@ -1,0 +1,28 @@
+"""Effect ``asymmetry``: different response in the + and - directions (inner, scaling).
+
+``g = 1 + a sgn(f_b)``: the response in the + direction is ``(1 + a) / (1 - a)`` times the one
+in the - direction (e.g. an eccentric vertical load or a rotated specimen).  Neutral: ``a = 0``.
+No state.
+"""
+
+from numba import njit
+
+from rrfrei.laws.effects import EffectSpec, register_effect
+from rrfrei.laws.registry import ParamSpec, Prior
+
+
+@njit(cache=True, inline="always")
+def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+    """Scale by 1 + a sgn(f_b) (contract in :mod:`rrfrei.laws.effects`)."""
+    s = 1.0 if fb > 0.0 else (-1.0 if fb < 0.0 else 0.0)
+    gi = 1.0 + p[po] * s
+    dg = dg * gi
+    g = g * gi
+    return g, dg, fa, ka
+
+
+EFFECT = register_effect(EffectSpec(
+    "asymmetry",
+    (ParamSpec("asym", "-", -0.9, 0.9, "relative excess of the + over the - response",
+               Prior("uniform", -0.5, 0.5)),),
+    0, "different response in the + and - directions", (0.0,), apply=apply))
