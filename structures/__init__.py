@@ -13,8 +13,8 @@ chain, calling ``rrfrei.laws.kernel.step`` for the isolator) and the public verb
 
 import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
 from structures.building import Isolator, ShearBuilding, available_buildings, load_building
+from structures.history import ConvergenceError, Response, time_history, time_history_batch
 from structures.identify import SuperstructureIdentification, identify_superstructure  # noqa: F401
-from structures.newmark import ConvergenceError, Response, time_history, time_history_batch
 from structures.predict import RunPrediction, predict_run  # noqa: F401
 from structures.propagate import ResponseSet, SpectrumScaling, propagate  # noqa: F401  (propagation API)
 from structures.shake_table import (  # noqa: F401  (shake-table runs)

@@ -198,7 +198,7 @@ def predict_run(
 
     from rrfrei.calibration.checks import nrmse
     from structures.building import ShearBuilding
-    from structures.newmark import ConvergenceError, time_history
+    from structures.history import ConvergenceError, time_history
 
     if not isinstance(run, ShakeTableRun):
         raise ValueError(f"run must be a ShakeTableRun, got {type(run).__name__}")
