@@ -1,8 +1,9 @@
 """Shear buildings on isolators: models, time histories, energy balance, propagation.
 
-Layers: :mod:`structures.newmark` holds the Numba kernels (Newmark + Newton over a tridiagonal
-chain, calling ``rrfrei.laws.kernel.step`` for the isolator) and the public verbs
-:func:`time_history` / :func:`time_history_batch`; :mod:`structures.building` the frozen models
+Layers: :mod:`structures.newmark` is the Numba kernel template (Newmark + Newton over a chain
+condensed onto the isolator, instantiated per isolator law), :mod:`structures.newmark_records`
+its named inputs and outputs, :mod:`structures.history` the public verbs :func:`time_history` /
+:func:`time_history_batch`; :mod:`structures.building` the frozen models
 (:class:`ShearBuilding`, :class:`Isolator`) with modal analysis and TOML loading;
 :mod:`structures.energy` the energy balance; :mod:`structures.propagate` posterior propagation.
 

@@ -240,28 +240,24 @@ def time_history(
             f"{spec.name!r} with parameters {spec.as_dict(p)}, {iso.count} bearings, length_scale "
             f"{iso.length_scale:g}" + robust_hint(spec, run.status, solver.robust)
         )
-    levels = hist.levels
-    robust_steps = np.flatnonzero(levels < 0)
+    robust_steps = np.flatnonzero(hist.robust)
     if robust_steps.size:
         warnings.warn(deviation_warning(spec.name, robust_steps, "time step"), stacklevel=2)
-    levels = np.where(levels < 0, -1 - levels, levels)
-    U = hist.disp
-    drift = U[:, 1:] - U[:, :-1]
     return Response(
         record=name,
         time=np.arange(n) * h,
-        isolator_disp=U[:, 0],
+        isolator_disp=hist.disp[:, 0],
         isolator_force=hist.isolator_force,
-        floor_disp=U[:, 1:],
-        drift=drift,
-        drift_ratio=drift / chain.story_height,
+        floor_disp=hist.disp[:, 1:],
+        drift=hist.drift,
+        drift_ratio=hist.drift_ratio,
         floor_accel_abs=hist.accel[:, 1:],
         base_accel_abs=hist.accel[:, 0],
         base_shear=hist.base_shear,
         energy=_energy.as_dict(hist.energy),
         energy_error=float(run.energy_error),
         newton_iterations=hist.iterations,
-        subdivided_steps=np.flatnonzero(levels > 0),
+        subdivided_steps=np.flatnonzero(hist.levels > 0),
         robust_steps=robust_steps,
     )
 

@@ -67,24 +67,28 @@ law_step = unbound("law_step")
 law_step_robust = unbound("law_step_robust")
 
 # rows of the per-analysis work array (each of length ndof)
-N_WORK = 12
+N_WORK = 11
 (U, V, A,  # committed displacement, velocity, acceleration
  U_SAVED, V_SAVED, A_SAVED,  # the committed state before a subdivided step
- R, HELD,  # eliminated residual of the predictor; superstructure correction with the base held
+ R,  # residual of the linear part at the predictor
  LOWER, RATIO, INV_PIVOT, SHAPE) = range(N_WORK)  # condensed K_L (see _condense)
 
 
 @njit(cache=True)
-def _condense(chain, c1, c2, lower, ratio, inv_pivot, shape):
-    """Eliminate K_L = K_s + c1 C + c2 M from the roof down.
+def _condense(chain, c1, c2, lower, ratio, inv_pivot, shape, flex):
+    """Condense K_L = K_s + c1 C + c2 M onto the base DOF.
 
-    Writes, for DOF j >= 1, the coupling ``lower[j]`` of DOFs j-1 and j, the elimination factors
-    ``ratio[j] = lower[j] / d'_j`` and ``inv_pivot[j] = 1 / d'_j``, and ``shape[j]`` = phi_j, the
-    correction of DOF j per unit base correction (phi_0 = 1, phi_j = -ratio[j] phi_{j-1}).
+    Eliminates K_L from the roof down (scratch: for DOF j >= 1 the coupling ``lower[j]`` of DOFs
+    j-1 and j, the factors ``ratio[j] = lower[j] / d'_j`` and ``inv_pivot[j] = 1 / d'_j``), and
+    writes ``shape`` = phi, the superstructure's correction per unit base correction (phi_0 = 1,
+    phi_j = -ratio[j] phi_{j-1}, i.e. -K_ss^-1 K_s0), and ``flex`` = K_ss^-1, the flexibility of
+    the superstructure with the base held still (row and column 0 zero).  The condensed base
+    residual of a residual R is then R_0 + phi . R_s and the superstructure's correction for a
+    base correction du_0 is K_ss^-1 R_s + phi du_0.
 
     Returns
     -------
-    (d_0, phi^T phi) : the base pivot of K_L [kN/m] (without the isolator tangent) and the
+    (d_0, phi^T phi) : the condensed base pivot [kN/m] (without the isolator tangent) and the
     squared norm of phi.
     """
     m = chain.mass
@@ -113,6 +117,18 @@ def _condense(chain, c1, c2, lower, ratio, inv_pivot, shape):
     for j in range(1, n):
         shape[j] = -ratio[j] * shape[j - 1]
         norm2 += shape[j] * shape[j]
+    for k in range(n):  # column k of K_ss^-1: eliminate e_k from the roof down, back-substitute
+        flex[0, k] = 0.0
+        flex[k, 0] = 0.0
+    for k in range(1, n):
+        below = 0.0
+        for j in range(n - 1, 0, -1):
+            below = (1.0 if j == k else 0.0) - (ratio[j + 1] * below if j < n - 1 else 0.0)
+            flex[j, k] = below  # r'_j
+        x = 0.0
+        for j in range(1, n):
+            x = (flex[j, k] - lower[j] * x) * inv_pivot[j]
+            flex[j, k] = x
     return d0, norm2
 
 
@@ -149,20 +165,23 @@ def integrate(chain, layer, ag, dt, solver, hist):
     max_iter = solver.max_iter
     max_levels = solver.max_levels
     tol = solver.tol
-    disp_h, accel_h, force_h, shear_h = hist.disp, hist.accel, hist.isolator_force, hist.base_shear
-    energy_h, iterations_h, levels_h = hist.energy, hist.iterations, hist.levels
+    disp_h, accel_h, drift_h, ratio_h = hist.disp, hist.accel, hist.drift, hist.drift_ratio
+    force_h, shear_h, energy_h = hist.isolator_force, hist.base_shear, hist.energy
+    iterations_h, levels_h, robust_h = hist.iterations, hist.levels, hist.robust
     n = m.shape[0]
     nt = ag.shape[0]
     store = disp_h.shape[0] > 0
     work = np.zeros((N_WORK, n))
     u, v, a = work[U], work[V], work[A]
     u_saved, v_saved, a_saved = work[U_SAVED], work[V_SAVED], work[A_SAVED]
-    r, held = work[R], work[HELD]
+    r = work[R]
     lower, ratio, inv_pivot, shape = work[LOWER], work[RATIO], work[INV_PIVOT], work[SHAPE]
+    flex = np.zeros((n, n))  # K_ss^-1 [m/kN] (see _condense)
     nstate = layer.state0.shape[0]
     sc = layer.state0.copy()  # the law's committed state
     st = layer.state0.copy()  # its trial state
     sc_saved = layer.state0.copy()  # its committed state before a subdivided step
+    inv_height = 1.0 / chain.story_height  # [1/m]
     drift_max = np.zeros(n - 1)  # peak |story drift| [m]
     accel_max = np.zeros(n - 1)  # peak |absolute floor acceleration| [m/s^2]
     # ---- at rest, initial acceleration solved exactly: a_0 = -a_g(0) 1 (no force at rest)
@@ -172,12 +191,16 @@ def integrate(chain, layer, ag, dt, solver, hist):
         for j in range(n):
             disp_h[0, j] = 0.0
             accel_h[0, j] = 0.0
+        for j in range(n - 1):
+            drift_h[0, j] = 0.0
+            ratio_h[0, j] = 0.0
         force_h[0] = 0.0
         shear_h[0] = 0.0
-        for q in range(energy_h.shape[1]):
-            energy_h[0, q] = 0.0
+        for q in range(energy_h.shape[0]):
+            energy_h[q, 0] = 0.0
         iterations_h[0] = 0
         levels_h[0] = 0
+        robust_h[0] = False
     # committed scalars: isolator force [kN], energies [kN m], ground acceleration [m/s^2]
     f_c = 0.0
     e_input = 0.0
@@ -234,34 +257,26 @@ def integrate(chain, layer, ag, dt, solver, hist):
             ca = 1.0 - 1.0 / (2.0 * beta)
             cav = -1.0 / (beta * h)
             if h != h_condensed:
-                d0, phi2 = _condense(chain, c1, c2, lower, ratio, inv_pivot, shape)
+                d0, phi2 = _condense(chain, c1, c2, lower, ratio, inv_pivot, shape, flex)
                 h_condensed = h
             status = 0
             for sub in range(nsub):
                 agk = ag1 if sub == nsub - 1 else ag0 + (ag1 - ag0) * (sub + 1) / nsub
-                # -- predictor, and the residual of the linear part at it eliminated from the roof
-                # down (r'_j = r_j - ratio_{j+1} r'_{j+1}): r'_0 is the condensed base residual
-                # without the isolator force.  Predicted superstructure values are recomputed
-                # from (u, v, a) at the commit rather than stored.
-                j = n - 1
-                u_above = u[j]
-                v_above = cv * v[j] + cva * a[j]
-                r_above = -m[j] * (agk + ca * a[j] + cav * v[j]) - cg[j] * v_above
-                for j in range(n - 2, -1, -1):  # story j+1 joins DOF j and DOF j+1
+                # -- predictor, the residual of the linear part at it (R_0 without the isolator
+                # force), and its condensation on the base r0 = R_0 + phi . R_s.  Predicted
+                # superstructure values are recomputed from (u, v, a) at the commit.
+                v_below = cv * v[0] + cva * a[0]
+                r_below = -m[0] * (agk + ca * a[0] + cav * v[0]) - cg[0] * v_below
+                r0 = 0.0
+                for j in range(1, n):  # story j joins DOF j-1 and DOF j
                     vj = cv * v[j] + cva * a[j]
-                    fs = ks[j] * (u_above - u[j]) + cs[j] * (v_above - vj)
-                    r_above -= fs
-                    r[j + 1] = r_above
-                    r_above = (-m[j] * (agk + ca * a[j] + cav * v[j]) - cg[j] * vj + fs
-                               - ratio[j + 1] * r_above)
-                    u_above = u[j]
-                    v_above = vj
-                r0 = r_above
-                # held = K_ss^-1 R_s: the superstructure's correction with the base held still
-                held_below = 0.0
-                for j in range(1, n):
-                    held_below = (r[j] - lower[j] * held_below) * inv_pivot[j]
-                    held[j] = held_below
+                    fs = ks[j - 1] * (u[j] - u[j - 1]) + cs[j - 1] * (vj - v_below)
+                    r[j - 1] = r_below + fs
+                    r0 += shape[j - 1] * r[j - 1]
+                    r_below = -m[j] * (agk + ca * a[j] + cav * v[j]) - cg[j] * vj - fs
+                    v_below = vj
+                r[n - 1] = r_below
+                r0 += shape[n - 1] * r_below
                 # -- Newton on the base: trial state of DOF 0
                 u0 = u[0]
                 v0 = cv * v[0] + cva * a[0]
@@ -277,9 +292,12 @@ def integrate(chain, layer, ag, dt, solver, hist):
                         if it == 1:  # condensed residual of the predictor: r'_0 - F
                             du0 = (r0 - f) / (d0 + kt)
                             norm2 = du0 * du0
-                            for j in range(1, n):
-                                d = held[j] + shape[j] * du0
-                                norm2 += d * d
+                            if norm2 < tol * tol:  # else not converged whatever the superstructure
+                                for j in range(1, n):  # its correction K_ss^-1 R_s + phi du_0
+                                    d = shape[j] * du0
+                                    for i in range(1, n):
+                                        d += flex[j, i] * r[i]
+                                    norm2 += d * d
                         else:  # the residual is on the base alone: r_0 = k_t du_0 - (F - F_prev)
                             du0 = (kt_prev * du0 - (f - f_prev)) / (d0 + kt)
                             norm2 = du0 * du0 * phi2
@@ -314,7 +332,7 @@ def integrate(chain, layer, ag, dt, solver, hist):
                 if status != 0:
                     break
                 # -- commit, with the energy increments (trapezoidal): the superstructure moves
-                # by its predictor plus held + phi (sum of the base corrections)
+                # by its predictor plus K_ss^-1 R_s + phi (sum of the base corrections)
                 agm = 0.5 * (ag_c + agk)
                 du_j = u0 - u[0]
                 de_input = -m[0] * agm * du_j
@@ -326,7 +344,9 @@ def integrate(chain, layer, ag, dt, solver, hist):
                 v[0] = v0
                 a[0] = a0
                 for j in range(1, n):
-                    d = held[j] + shape[j] * moved
+                    d = shape[j] * moved
+                    for i in range(1, n):
+                        d += flex[j, i] * r[i]
                     uj = u[j] + d
                     vj = cv * v[j] + cva * a[j] + c1 * d
                     aj = ca * a[j] + cav * v[j] + c2 * d
@@ -350,13 +370,14 @@ def integrate(chain, layer, ag, dt, solver, hist):
                 break
         if store:
             iterations_h[k] = n_it
-            levels_h[k] = -1 - level if deviated else level
+            levels_h[k] = level
+            robust_h[k] = deviated
         if status != 0:
             if store:
                 for j in range(n):
                     disp_h[k, j] = u[j]
             return Summary(status, k, u0_peak, 0.0, 0.0, 0.0, 0.0, n_subdivided, n_robust,
-                           drift_max / chain.story_height, accel_max)
+                           drift_max * inv_height, accel_max)
         if level > 0:
             n_subdivided += 1
         if deviated:
@@ -379,6 +400,8 @@ def integrate(chain, layer, ag, dt, solver, hist):
             if store:
                 disp_h[k, j] = u[j]
                 accel_h[k, j] = a[j] + ag1
+                drift_h[k, j - 1] = d
+                ratio_h[k, j - 1] = d * inv_height[j - 1]
         if abs(u[0]) > u0_peak:
             u0_peak = abs(u[0])
         shear = ks[0] * (u[1] - u[0]) + cs[0] * (v[1] - v[0])
@@ -392,14 +415,14 @@ def integrate(chain, layer, ag, dt, solver, hist):
         if store:
             force_h[k] = f_c
             shear_h[k] = shear
-            energy_h[k, 0] = e_input
-            energy_h[k, 1] = e_kinetic
-            energy_h[k, 2] = e_viscous
-            energy_h[k, 3] = e_isolator
-            energy_h[k, 4] = e_strain
+            energy_h[0, k] = e_input
+            energy_h[1, k] = e_kinetic
+            energy_h[2, k] = e_viscous
+            energy_h[3, k] = e_isolator
+            energy_h[4, k] = e_strain
     energy_error = imbalance_max / input_max if input_max > 0.0 else 0.0
     return Summary(0, -1, u0_peak, abs(u[0]), shear_peak, e_isolator, energy_error, n_subdivided,
-                   n_robust, drift_max / chain.story_height, accel_max)
+                   n_robust, drift_max * inv_height, accel_max)
 
 
 @njit(cache=True, parallel=True)
@@ -413,8 +436,9 @@ def batch(chain, layer, params, ag, dt, solver, n_blocks, out):
     """
     runs = params.shape[0]
     n = chain.mass.shape[0]
-    none = Histories(np.empty((0, n)), np.empty((0, n)), np.empty(0), np.empty(0), np.empty((0, N_ENERGY)),
-                     np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
+    none = Histories(np.empty((0, n)), np.empty((0, n)), np.empty((0, n - 1)), np.empty((0, n - 1)),
+                     np.empty(0), np.empty(0), np.empty((N_ENERGY, 0)), np.empty(0, dtype=np.int64),
+                     np.empty(0, dtype=np.int64), np.empty(0, dtype=np.bool_))
     # (the result arrays are taken out of ``out`` first: Numba (0.68) loses writes made through a
     # named tuple's field inside ``prange``)
     status, iso_disp_peak, iso_disp_residual = out.status, out.iso_disp_peak, out.iso_disp_residual

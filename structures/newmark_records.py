@@ -72,30 +72,36 @@ class Solver(NamedTuple):
 
 
 class Histories(NamedTuple):
-    """Output histories, one row per output step (nt rows), or zero rows: peaks only."""
+    """Output histories, one row per output step (nt of them), or zero rows: peaks only."""
 
     disp: np.ndarray
     """(nt, ndof) displacement relative to the ground [m]."""
     accel: np.ndarray
     """(nt, ndof) absolute acceleration [m/s^2]."""
+    drift: np.ndarray
+    """(nt, ndof - 1) story drift, DOF i minus DOF i-1 [m]."""
+    drift_ratio: np.ndarray
+    """(nt, ndof - 1) drift / story height [-]."""
     isolator_force: np.ndarray
     """(nt,) isolator layer force [kN]."""
     base_shear: np.ndarray
     """(nt,) shear of story 1, spring and dashpot [kN]."""
     energy: np.ndarray
-    """(nt, 5) energy terms :data:`ENERGY_TERMS` [kN m]."""
+    """(5, nt) energy terms [kN m], one row per term of :data:`ENERGY_TERMS`."""
     iterations: np.ndarray
     """(nt,) int64 Newton iterations per output step (summed over its substeps)."""
     levels: np.ndarray
-    """(nt,) int64 subdivision level of the output step (0: one step); ``-1 - level`` where
-    the robust local solve acted."""
+    """(nt,) int64 subdivision level of the output step (0: one step, l: 2^l substeps)."""
+    robust: np.ndarray
+    """(nt,) bool: the robust local solve acted in the output step (a deviation from OpenSees)."""
 
     @staticmethod
     def allocate(nt: int, ndof: int) -> Histories:
         """Uninitialised histories for ``nt`` output steps (``nt = 0``: none)."""
-        return Histories(np.empty((nt, ndof)), np.empty((nt, ndof)), np.empty(nt), np.empty(nt),
-                         np.empty((nt, N_ENERGY)), np.zeros(nt, dtype=np.int64),
-                         np.zeros(nt, dtype=np.int64))
+        e = np.empty
+        return Histories(e((nt, ndof)), e((nt, ndof)), e((nt, ndof - 1)), e((nt, ndof - 1)), e(nt), e(nt),
+                         e((N_ENERGY, nt)), np.zeros(nt, dtype=np.int64), np.zeros(nt, dtype=np.int64),
+                         np.zeros(nt, dtype=np.bool_))
 
 
 class Summary(NamedTuple):
