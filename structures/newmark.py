@@ -23,15 +23,21 @@ one unknown.  Since R is affine in u apart from F_iso, the residual after a corr
 
     R(u + du) = R(u) - K_L du - (F_new - F) e_0 = (k_t du_0 - (F_new - F)) e_0,
 
-i.e. after the first correction of a step the residual lives on the base DOF alone.  There
-``K_eff du = r_0 e_0`` has the solution du = phi du_0 with du_0 = r_0 / (d_0 + k_t), where d_0
-is the base pivot of K_L eliminated from the roof down (the static condensation of the linear
-superstructure onto the base) and phi (phi_0 = 1) the superstructure's response to a unit base
-correction; ||du||_2 = |du_0| sqrt(phi^T phi).  So a step costs one full residual and one
-forward/back substitution of the tridiagonal K_eff (the first correction, from the predictor),
-then a scalar Newton iteration on the base DOF, and the superstructure is moved once by
-phi (sum of the later du_0).  These are OpenSees' iterates (same corrections, same norm), up to
-rounding; d_0 and phi depend on the step size only and are computed when it changes.
+i.e. after the first correction of a step the residual lives on the base DOF alone.  Split
+K_L into its base row/column and the superstructure block K_ss (tridiagonal); with
+phi = -K_ss^-1 K_s0 (phi_0 = 1, the superstructure's response to a unit base correction) and
+d_0 = K_00 + K_0s phi (the condensed base stiffness), ``K_eff du = R`` reads
+
+    du_0 = (R_0 + phi_s . R_s) / (d_0 + k_t),    du_s = K_ss^-1 R_s + phi_s du_0,
+
+and for a residual on the base alone du = phi du_0, ||du||_2 = |du_0| sqrt(phi^T phi).  So a step
+costs one residual of the linear part at the predictor (R_s does not depend on the isolator),
+a scalar Newton iteration on the base DOF (every isolator call, and every correction, is
+O(1)), and one move of the superstructure by K_ss^-1 R_s + phi (sum of the du_0) at the commit.
+These are OpenSees' iterates (same corrections, same norm) up to rounding; d_0, phi and
+K_ss^-1 (dense: no serial substitution in the step) depend on the step size only and are
+computed when it changes.  The norm of the first correction needs du_s only when |du_0| < tol
+(otherwise it cannot converge).
 
 A step whose Newton iteration fails (no convergence in ``max_iter``, a law status < 0 or a
 non-finite force) is retried from the committed state in 2, 4, ... 2^max_levels equal substeps
@@ -71,7 +77,8 @@ N_WORK = 11
 (U, V, A,  # committed displacement, velocity, acceleration
  U_SAVED, V_SAVED, A_SAVED,  # the committed state before a subdivided step
  R,  # residual of the linear part at the predictor
- LOWER, RATIO, INV_PIVOT, SHAPE) = range(N_WORK)  # condensed K_L (see _condense)
+ LOWER, RATIO, INV_PIVOT,  # scratch of the elimination in _condense
+ SHAPE) = range(N_WORK)  # phi, the superstructure's correction per unit base correction
 
 
 @njit(cache=True)
@@ -165,7 +172,7 @@ def integrate(chain, layer, ag, dt, solver, hist):
     max_iter = solver.max_iter
     max_levels = solver.max_levels
     tol = solver.tol
-    disp_h, accel_h, drift_h, ratio_h = hist.disp, hist.accel, hist.drift, hist.drift_ratio
+    disp_h, accel_h, drift_h, drift_ratio_h = hist.disp, hist.accel, hist.drift, hist.drift_ratio
     force_h, shear_h, energy_h = hist.isolator_force, hist.base_shear, hist.energy
     iterations_h, levels_h, robust_h = hist.iterations, hist.levels, hist.robust
     n = m.shape[0]
@@ -193,7 +200,7 @@ def integrate(chain, layer, ag, dt, solver, hist):
             accel_h[0, j] = 0.0
         for j in range(n - 1):
             drift_h[0, j] = 0.0
-            ratio_h[0, j] = 0.0
+            drift_ratio_h[0, j] = 0.0
         force_h[0] = 0.0
         shear_h[0] = 0.0
         for q in range(energy_h.shape[0]):
@@ -401,7 +408,7 @@ def integrate(chain, layer, ag, dt, solver, hist):
                 disp_h[k, j] = u[j]
                 accel_h[k, j] = a[j] + ag1
                 drift_h[k, j - 1] = d
-                ratio_h[k, j - 1] = d * inv_height[j - 1]
+                drift_ratio_h[k, j - 1] = d * inv_height[j - 1]
         if abs(u[0]) > u0_peak:
             u0_peak = abs(u[0])
         shear = ks[0] * (u[1] - u[0]) + cs[0] * (v[1] - v[0])
