@@ -296,7 +296,7 @@ def integrate(chain, layer, ag, dt, solver, hist):
                 converged = False
                 for it in range(max_iter + 1):
                     if it > 0:
-                        if it == 1:  # condensed residual of the predictor: r'_0 - F
+                        if it == 1:  # the condensed residual of the predictor, r0 - F
                             du0 = (r0 - f) / (d0 + kt)
                             norm2 = du0 * du0
                             if norm2 < tol * tol:  # else not converged whatever the superstructure
