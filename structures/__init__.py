@@ -1,8 +1,9 @@
 """Shear buildings on isolators: models, time histories, energy balance, propagation.
 
-Layers: :mod:`structures.newmark` holds the Numba kernels (Newmark + Newton over a tridiagonal
-chain, calling the isolator law's step kernel) and the public verbs
-:func:`time_history` / :func:`time_history_batch`; :mod:`structures.building` the frozen models
+Layers: :mod:`structures.newmark` is the Numba kernel template (Newmark + Newton over a chain
+condensed onto the isolator, instantiated per isolator law), :mod:`structures.newmark_records`
+its named inputs and outputs, :mod:`structures.history` the public verbs :func:`time_history` /
+:func:`time_history_batch`; :mod:`structures.building` the frozen models
 (:class:`ShearBuilding`, :class:`Isolator`) with modal analysis and TOML loading;
 :mod:`structures.energy` the energy balance; :mod:`structures.propagate` posterior propagation
 (its inputs, executors, store, response set and plots in modules of those names).
@@ -17,8 +18,8 @@ Layer: on top of ``ground_motions`` and the ``rrfrei`` core (laws, simulation, c
 
 import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
 from structures.building import Isolator, ShearBuilding, available_buildings, load_building
+from structures.history import ConvergenceError, Response, time_history, time_history_batch
 from structures.identify import SuperstructureIdentification, identify_superstructure  # noqa: F401
-from structures.newmark import ConvergenceError, Response, time_history, time_history_batch
 from structures.predict import RunPrediction, predict_run  # noqa: F401
 from structures.propagate import ResponseSet, SpectrumScaling, propagate  # noqa: F401  (propagation API)
 from structures.shake_table import (  # noqa: F401  (shake-table runs)

@@ -27,12 +27,12 @@ from collections.abc import Mapping
 import numpy as np
 
 TERMS = ("input", "kinetic", "viscous", "isolator", "strain")
-"""Names of the energy histories [kN m], in the column order of the kernel's ``E`` array."""
+"""Names of the energy histories [kN m], in the row order of the kernel's energy array."""
 
 
 def as_dict(E: np.ndarray) -> dict[str, np.ndarray]:
-    """Energy histories by name from the kernel's (n_steps, 5) array."""
-    return {name: np.ascontiguousarray(E[:, i]) for i, name in enumerate(TERMS)}
+    """Energy histories by name from the kernel's (5, n_steps) array (one row per term)."""
+    return {name: E[i] for i, name in enumerate(TERMS)}
 
 
 def imbalance(energy: Mapping[str, np.ndarray]) -> np.ndarray:

@@ -38,7 +38,7 @@ import pandas as pd
 
 from rrfrei.calibration.checks import nrmse
 from structures.building import ShearBuilding
-from structures.newmark import ConvergenceError, time_history
+from structures.history import ConvergenceError, time_history
 from structures.shake_table import ShakeTableRun
 
 __all__ = ["RunPrediction", "predict_run"]
