@@ -39,7 +39,7 @@ import numpy as np
 
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
-from rrfrei.calibration.likelihood import Problem, pointwise_from_residuals
+from rrfrei.calibration.likelihood import Problem
 from rrfrei.calibration.priors import cube_range
 
 __all__ = ["find_map", "run_chain", "ChainResult", "CHECK", "MAX_STEPS"]
@@ -55,9 +55,8 @@ class _Cube:
 
     def __init__(self, problem: Problem) -> None:
         kinds, lo, hi = [], [], []
-        for name in problem.free:
-            ps = problem.spec.param(name)
-            k, a, b = cube_range(problem.priors[name], ps.lower, ps.upper)
+        for j, name in enumerate(problem.free):
+            k, a, b = cube_range(problem.priors[name], problem.lower[j], problem.upper[j])
             kinds.append(k == "log")
             lo.append(a)
             hi.append(b)
@@ -80,27 +79,6 @@ class _Cube:
         return np.clip(np.where(self.log, lg, lin), 0.0, 1.0)
 
 
-def _profiled(problem: Problem, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(theta rows with profiled noise, log posterior) for law-parameter rows ``X``."""
-    P = problem.full_params(np.column_stack([X, np.ones((X.shape[0], problem.ndim - X.shape[1]))]))
-    F, status = problem.forces(P)
-    problem.n_evals += X.shape[0]
-    noise = np.full((X.shape[0], problem.ndim - X.shape[1]), np.nan)
-    ok = status == 0
-    if ok.any():
-        noise[ok] = problem.profile_noise(F[ok])
-    theta = np.column_stack([X, noise])
-    lp = problem.log_prior(np.where(np.isfinite(theta), theta, 1.0))
-    lp[~ok] = -np.inf
-    good = np.flatnonzero(np.isfinite(lp))
-    if good.size:
-        sigma, rho = problem.noise_params(theta[good])
-        resid = problem.residuals(F[good])
-        lp[good] += pointwise_from_residuals(resid, sigma, rho).sum(axis=1)
-    lp[~np.isfinite(lp)] = -np.inf
-    return theta, lp
-
-
 def find_map(problem: Problem, seed: int = 0, *, max_evals: int | None = None,
              budget: TimeBudget | None = None, progress: bool = False) -> tuple[np.ndarray, float]:
     """Global optimum of the log posterior (noise profiled): (theta, log posterior).
@@ -120,7 +98,7 @@ def find_map(problem: Problem, seed: int = 0, *, max_evals: int | None = None,
     rng = np.random.default_rng(seed)
     cube = _Cube(problem)
     if k == 0:
-        theta, lp = _profiled(problem, np.zeros((1, 0)))
+        theta, lp = problem.profile_log_prob(np.zeros((1, 0)))
         return theta[0], float(lp[0])
     n0 = max(64, 32 * k)
     max_evals = max_evals or 600 * k + 2000
@@ -128,7 +106,7 @@ def find_map(problem: Problem, seed: int = 0, *, max_evals: int | None = None,
     try:
         Z0 = rng.uniform(0.0, 1.0, (n0, k))
         Z0[0] = 0.5
-        theta, lp = _profiled(problem, cube.to_x(Z0))
+        theta, lp = problem.profile_log_prob(cube.to_x(Z0))
         bar.update(n0)
         best = int(np.argmax(lp))
         best_theta, best_lp = theta[best], float(lp[best])
@@ -146,7 +124,7 @@ def find_map(problem: Problem, seed: int = 0, *, max_evals: int | None = None,
                 if budget is not None:
                     budget.check()
                 Z = np.array(es.ask())
-                th, l = _profiled(problem, cube.to_x(Z))
+                th, l = problem.profile_log_prob(cube.to_x(Z))
                 bar.update(len(Z))
                 f = np.where(np.isfinite(l), -l, 1e300)
                 es.tell(list(Z), list(f))
@@ -183,7 +161,6 @@ def _polish(problem: Problem, cube: _Cube, theta: np.ndarray, lp: float, *,
             budget.check()
         P = problem.full_params(np.column_stack([cube.to_x(z), pad]))
         F, status = problem.forces(P)
-        problem.n_evals += 1
         bar.update(1)
         if status[0] != 0 or not np.all(np.isfinite(F[0])):
             return np.full(obs.size, 1e3)
@@ -197,7 +174,7 @@ def _polish(problem: Problem, cube: _Cube, theta: np.ndarray, lp: float, *,
         return theta, lp
     finally:
         bar.close()
-    th, lpp = _profiled(problem, cube.to_x(res.x))
+    th, lpp = problem.profile_log_prob(cube.to_x(res.x))
     if float(lpp[0]) > lp:
         return np.asarray(th[0], dtype=float), float(lpp[0])
     return theta, lp
@@ -252,13 +229,7 @@ def laplace_cov(problem: Problem, theta0: np.ndarray) -> np.ndarray | None:
         return None
     F = problem.at_points(F)
     J = ((F[1:] - F[0]) / h[:, None]).T  # (likelihood points, k)
-    sigma, rho = problem.noise_params(theta0[None, :])
-    s = float(sigma[0])
-    if rho is None:
-        Jw = J / s
-    else:
-        r = float(rho[0])
-        Jw = np.vstack([J[:1] * math.sqrt(max(1.0 - r * r, 0.0)), J[1:] - r * J[:-1]]) / s
+    Jw = problem.noise.whiten(J, theta0[None, k:])
     H = Jw.T @ Jw + np.eye(k) / LAPLACE_RIDGE**2
     try:
         cov = np.linalg.inv(H)
@@ -285,7 +256,7 @@ def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generato
     cov = laplace_cov(problem, theta0) if k else None
     chol = np.linalg.cholesky(cov) if cov is not None else 1e-3 * np.eye(k)
     z = cube.to_z(theta0[:k])[0] if k else np.zeros(0)
-    sd_noise = np.array([1.0 / math.sqrt(2.0 * n)] + ([1.0] if problem.noise == "ar1" else []))
+    sd_noise = np.array([1.0 / math.sqrt(2.0 * n)] + ([1.0] if problem.noise.ar1 else []))
     out = np.empty((nw, problem.ndim))
     filled = 0
     scale = 1.0
@@ -294,7 +265,7 @@ def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generato
         inside = np.all((Z >= 0.0) & (Z <= 1.0), axis=1)
         X = cube.to_x(Z) if k else np.zeros((nw, 0))
         noise = theta0[k:] * (1.0 + scale * sd_noise * rng.standard_normal((nw, problem.ndim - k)))
-        if problem.noise == "ar1":
+        if problem.noise.ar1:
             r0 = theta0[k + 1]
             noise[:, 1] = r0 + scale * math.sqrt(max(1.0 - r0 * r0, 1e-6) / n) * rng.standard_normal(nw)
         cand = np.column_stack([X, noise])[inside]
@@ -528,6 +499,11 @@ class _Store:
         self.last = time.perf_counter()
 
 
+def moves() -> list:
+    """The ensemble's move mixture: (emcee move, probability) pairs."""
+    return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+
+
 def run_chain(
     problem: Problem,
     theta0: np.ndarray,
@@ -571,8 +547,7 @@ def run_chain(
         raise ValueError(f"max_steps must be an integer >= 2, got {max_steps!r}")
     store = _Store(checkpoint, nw, ndim)
     resumed = store.n
-    moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
-    sampler = emcee.EnsembleSampler(nw, ndim, problem.log_prob, vectorize=True, moves=moves)
+    sampler = emcee.EnsembleSampler(nw, ndim, problem.log_prob, vectorize=True, moves=moves())
     if resumed:
         state = emcee.State(store.chain[-1].copy(), log_prob=store.logp[-1].copy())
         sampler.random_state = np.random.RandomState([int(seed), resumed]).get_state()

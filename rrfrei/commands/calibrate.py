@@ -190,7 +190,7 @@ def run(args: argparse.Namespace) -> int:
     from rrfrei.calibration import ConvergenceWarning, advice, calibrate, plots, predict, run_stats
     from rrfrei.laws import get
 
-    get(args.law)  # unknown law -> user error before reading anything heavy
+    spec = get(args.law)  # resolved once: an unknown law is a user error before anything heavy
     test = load(args.test, args)
     holdouts = [load(h, args) for h in args.holdout]
     out = Path(args.out)
@@ -206,7 +206,7 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
         try:
-            cal = calibrate(test, args.law, noise=args.noise, seed=args.seed, walkers=args.walkers,
+            cal = calibrate(test, spec, noise=args.noise, seed=args.seed, walkers=args.walkers,
                             steps=args.steps, priors=args.priors, checkpoint=checkpoint,
                             progress=not (args.no_progress or args.quiet or args.json),
                             max_steps=args.max_steps, time_budget=budget,
