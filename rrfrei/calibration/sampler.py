@@ -411,29 +411,47 @@ class _Check:
     ess_bulk: float
     ess_tail: float
     rhat: float
+    n: int = 0  # chain length checked
+    diagnosed: bool = False  # ESS and R-hat computed
 
-    def converged(self, n_steps: int, previous_tmax: float, rhat_limit: float = RHAT_STOP) -> bool:
+    def tau_ok(self, n_steps: int, previous_tmax: float) -> bool:
+        """The tau part of the rule: tau finite, >= MIN_TAU tau kept, tau stable since the last check."""
         return bool(
             np.all(np.isfinite(self.tau)) and n_steps - self.burn >= MIN_TAU * self.tmax
             and abs(previous_tmax - self.tmax) <= TAU_CHANGE * self.tmax
+        )
+
+    def converged(self, n_steps: int, previous_tmax: float, rhat_limit: float = RHAT_STOP) -> bool:
+        return bool(
+            self.tau_ok(n_steps, previous_tmax)
             and self.ess_bulk >= ESS_TARGET and self.ess_tail >= ESS_TARGET and self.rhat < rhat_limit
         )
 
     def text(self) -> str:
+        if not self.diagnosed:
+            return f"tau≈{self.tmax:.0f} (ESS, R-hat once tau is stable)"
         return (f"tau≈{self.tmax:.0f} ESS {self.ess_bulk:.0f}/{self.ess_tail:.0f} "
                 f"R-hat {self.rhat:.3f}")
 
 
-def _check(chain: np.ndarray) -> _Check:
-    """Burn-in, tau, ESS and R-hat of the chain after burn-in (the rule of :func:`run_chain`)."""
+def _check(chain: np.ndarray, previous_tmax: float | None = None) -> _Check:
+    """Burn-in, tau, ESS and R-hat of the chain after burn-in (the rule of :func:`run_chain`).
+
+    With ``previous_tmax`` (the last check's tau) the ESS and R-hat, 70 % of a check's cost, are
+    computed only when the tau part of the rule (:meth:`_Check.tau_ok`) holds, the only case in
+    which they can decide it (nan otherwise).
+    """
     n = chain.shape[0]
     t0 = _tau(chain[n // 4:])
     burn = burn_in(n, float(np.max(t0)) if np.all(np.isfinite(t0)) else math.nan)
     kept = chain[burn:]
     tau = _tau(kept)
     tmax = float(np.max(tau)) if np.all(np.isfinite(tau)) else math.nan
-    eb, et, rh = _diagnose(kept)
-    return _Check(burn, tau, tmax, eb, et, rh)
+    chk = _Check(burn, tau, tmax, math.nan, math.nan, math.nan, n=n)
+    if previous_tmax is None or chk.tau_ok(n, previous_tmax):
+        chk.ess_bulk, chk.ess_tail, chk.rhat = _diagnose(kept)
+        chk.diagnosed = True
+    return chk
 
 
 class _Store:
@@ -566,7 +584,7 @@ def run_chain(
     try:
         if steps is None and resumed >= 3 * CHECK:  # a resumed chain may already be converged
             previous = _check(store.chain[:-CHECK]).tmax
-            chk = _check(store.chain)
+            chk = _check(store.chain, previous)
             if chk.converged(store.n, previous):
                 stopped_by = "converged"
                 target = store.n
@@ -595,21 +613,23 @@ def run_chain(
                 stopped_by = "time_budget"
                 break
             if steps is None and store.n >= 2 * CHECK:
-                chk = _check(store.chain)
+                chk = _check(store.chain, previous)
                 bar.set_postfix_str(chk.text())
                 if chk.converged(store.n, previous):
                     stopped_by = "converged"
                     break
                 previous = chk.tmax
-                if math.isfinite(chk.tmax) and chk.ess_bulk > 0:
-                    need = max(store.n * ESS_TARGET / max(min(chk.ess_bulk, chk.ess_tail), 1.0),
-                               chk.burn + MIN_TAU * chk.tmax)
+                if math.isfinite(chk.tmax):
+                    need = chk.burn + MIN_TAU * chk.tmax
+                    if chk.ess_bulk > 0:
+                        need = max(need, store.n * ESS_TARGET / max(min(chk.ess_bulk, chk.ess_tail), 1.0))
                     _set_total(bar, min(int(need) + CHECK, max_steps) - resumed)
     finally:
         store.flush(force=True)
         bar.close()
     chain, logp = store.chain, store.logp
-    chk = _check(chain)
+    if chk is None or not chk.diagnosed or chk.n != chain.shape[0]:  # else: the last check is this one
+        chk = _check(chain)
     tau, tmax = chk.tau, chk.tmax
     tau_half = _tau(chain[chk.burn: chk.burn + (chain.shape[0] - chk.burn) * 4 // 5])
     long_enough = bool(np.all(np.isfinite(tau)) and chain.shape[0] - chk.burn >= MIN_TAU * tmax)
