@@ -166,14 +166,12 @@ def _cycle_table(test: ShearTest, fmap: np.ndarray, F: np.ndarray, a: float) -> 
         out[f"{k}_test"] = mt[k].to_numpy(float)
         out[f"{k}_map"] = mm[k].to_numpy(float) if len(mm) == len(mt) else np.nan
     if len(mt):
-        per = np.full((F.shape[0], len(mt), len(keys)), np.nan)
-        for d in range(F.shape[0]):
-            md = _cycle_metrics(test.disp, F[d])
-            if len(md) == len(mt):
-                per[d] = md[list(keys)].to_numpy(float)
-        for j, k in enumerate(keys):
-            out[f"{k}_lo"] = np.nanquantile(per[:, :, j], a, axis=0)
-            out[f"{k}_hi"] = np.nanquantile(per[:, :, j], 1 - a, axis=0)
+        from rrfrei.energy import cycle_metrics_batch
+
+        per = cycle_metrics_batch(test.disp, F)  # the test's cycles: they depend on disp only
+        for k in keys:
+            out[f"{k}_lo"] = np.nanquantile(per[k], a, axis=0)
+            out[f"{k}_hi"] = np.nanquantile(per[k], 1 - a, axis=0)
     for c in mt.columns:
         if c not in keys and c not in out.columns and c != "cycle":
             out[c] = mt[c].to_numpy()
