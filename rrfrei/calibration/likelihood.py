@@ -6,9 +6,11 @@ sample, exactly as an OpenSees displacement-controlled analysis) and the residua
 
 * ``noise="iid"``: independent N(0, sigma^2);
 * ``noise="ar1"``: stationary AR(1), ``e_i = rho e_{i-1} + w_i``, ``w_i ~ N(0, sigma^2)``,
-  ``e_1 ~ N(0, sigma^2 / (1 - rho^2))``.  The pointwise log-likelihood of sample i is the
-  conditional density ``log p(e_i | e_{i-1})`` (and the marginal for i = 1), so the points sum to
-  the joint log-likelihood (Box & Jenkins, *Time Series Analysis*, ch. 7).
+  ``e_1 ~ N(0, sigma^2 / (1 - rho^2))``.
+
+The noise model (parameters, bounds, priors, MLE, pointwise densities) is one
+:class:`~.noise.NoiseModel` (:mod:`.noise`); the batch kernels below fuse the law run with the
+sum of its pointwise densities (their equality is tested).
 
 The walkers of the ensemble are evaluated in parallel (``prange``), each along the whole history
 with preallocated work rows: no allocation per time step.  A law that fails (status < 0) or a

@@ -17,7 +17,8 @@ keeping the base prior's *kind*:
 * ``uniform``     -> unchanged (a dimensional uniform prior is a deliberate statement).
 
 Dimensionless parameters, parameters with time in their unit (rates, viscosities) and geometry
-keep the base prior.  Every prior is then cut to the parameter's physical bounds.  Pass
+keep the base prior.  Every prior is then cut to the parameter's physical bounds (by the
+log prior of :class:`~.likelihood.Problem`, whose ``lower`` / ``upper`` hold them).  Pass
 ``priors="registry"`` to :func:`rrfrei.calibrate` to use the base priors unchanged, or a mapping /
 TOML file to override any of them.
 
