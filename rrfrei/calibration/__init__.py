@@ -49,7 +49,14 @@ from rrfrei.calibration.results import (
     posterior_draws,
     summary_table,
 )
-from rrfrei.calibration.sampler import MAX_STEPS, find_map, load_optimum, run_chain, save_optimum
+from rrfrei.calibration.sampler import (
+    MAX_STEPS,
+    ensemble_size,
+    find_map,
+    load_optimum,
+    run_chain,
+    save_optimum,
+)
 from rrfrei.io import ShearTest, read_test
 from rrfrei.laws import LawSpec, get
 
@@ -229,15 +236,10 @@ def calibrate(
             "which are evaluated quasi-statically (velocity 0); rate effects cannot be judged",
             UserWarning, stacklevel=2,
         )
-    nw = walkers if walkers is not None else max(32, 4 * problem.ndim)
-    if not isinstance(nw, (int, np.integer)) or nw < 2 * problem.ndim:
-        raise ValueError(
-            f"walkers = {walkers!r} is too few for {problem.ndim} sampled quantities; "
-            f"use >= {2 * problem.ndim}"
-        )
+    nw = ensemble_size(walkers, problem.ndim)  # the one rule (run_chain applies the same)
     if steps is not None and (not isinstance(steps, (int, np.integer)) or steps < 2):
         raise ValueError(f"steps must be an integer >= 2 or None (run to convergence), got {steps!r}")
-    fingerprint = _fingerprint(problem, nw + nw % 2, seed)
+    fingerprint = _fingerprint(problem, nw, seed)
     stored = load_optimum(checkpoint) if checkpoint is not None else None
     if stored is not None and (stored.get("fingerprint", fingerprint) != fingerprint
                                or stored.get("names") != list(problem.names)

@@ -42,7 +42,7 @@ from rrfrei.budget import progress as progress_bar
 from rrfrei.calibration.likelihood import Problem
 from rrfrei.calibration.priors import cube_range
 
-__all__ = ["find_map", "run_chain", "ChainResult", "CHECK", "MAX_STEPS"]
+__all__ = ["find_map", "run_chain", "ensemble_size", "ChainResult", "CHECK", "MAX_STEPS"]
 
 MAX_STEPS = 20_000
 
@@ -517,6 +517,16 @@ class _Store:
         self.last = time.perf_counter()
 
 
+def ensemble_size(walkers: int | None, ndim: int) -> int:
+    """Walkers of the ensemble: ``walkers`` (default ``max(32, 4 ndim)``) rounded up to an even
+    number (emcee updates two halves); a ValueError below ``2 ndim``."""
+    nw = max(32, 4 * ndim) if walkers is None else walkers
+    if isinstance(nw, bool) or not isinstance(nw, (int, np.integer)) or nw < 2 * ndim:
+        raise ValueError(f"walkers = {walkers!r} is too few for {ndim} sampled quantities; "
+                         f"use >= {2 * ndim}")
+    return int(nw) + int(nw) % 2
+
+
 def moves() -> list:
     """The ensemble's move mixture: (emcee move, probability) pairs."""
     return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
@@ -555,10 +565,7 @@ def run_chain(
 
     t0 = time.perf_counter()
     ndim = problem.ndim
-    nw = walkers if walkers is not None else max(32, 4 * ndim)
-    nw += nw % 2
-    if nw < 2 * ndim:
-        raise ValueError(f"walkers = {nw} is too few for {ndim} sampled parameters; use >= {2 * ndim}")
+    nw = ensemble_size(walkers, ndim)
     if steps is not None and (not isinstance(steps, (int, np.integer)) or steps < 2):
         raise ValueError(f"steps must be an integer >= 2 or None (run to convergence), got {steps!r}")
     if not isinstance(max_steps, (int, np.integer)) or isinstance(max_steps, bool) or max_steps < 2:
