@@ -181,6 +181,29 @@ def test_the_noise_model_is_resolved_once_and_bad_names_say_what_is_allowed():
         NoiseModel("white")
 
 
+def test_the_convergence_checks_statistics_are_emcees_tau_and_arviz_ess_and_rhat():
+    """The stopping rule's fast all-parameter estimators (one FFT) give exactly the reference
+    numbers: emcee's integrated time, arviz' bulk and tail ESS and rank-normalised R-hat."""
+    import arviz as az
+    import emcee
+
+    from rrfrei.calibration.sampler import _diagnose, _tau
+
+    rng = np.random.default_rng(1)
+    n, m, phi = 600, 16, np.array([0.5, 0.8, 0.95])  # AR(1) chains: tau = (1 + phi) / (1 - phi)
+    x = np.empty((n, m, phi.size))
+    x[0] = rng.standard_normal((m, phi.size))
+    for t in range(1, n):
+        x[t] = phi * x[t - 1] + rng.standard_normal((m, phi.size))
+    np.testing.assert_allclose(_tau(x), emcee.autocorr.integrated_time(x, tol=0), rtol=1e-12)
+    ds = {f"p{j}": x[:, :, j].T for j in range(phi.size)}  # walkers as chains
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = [min(float(az.ess(ds, method=k)[v]) for v in ds) for k in ("bulk", "tail")]
+        ref.append(max(float(az.rhat(ds)[v]) for v in ds))
+    assert _diagnose(x) == pytest.approx(tuple(ref), rel=1e-12)
+
+
 def test_a_failing_or_out_of_support_parameter_set_has_zero_posterior_density():
     pb = setup_problem(synthetic("plasticity", 0), "plasticity")
     bad = np.array([[3000.0, 1.5, 1.5, 0.0, 2.0, 0.1],  # alpha1 > 1 (outside bounds)

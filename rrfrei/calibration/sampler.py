@@ -287,10 +287,11 @@ def _autocov(x: np.ndarray) -> np.ndarray:
     """Sum_t (x_t - mean)(x_{t+lag} - mean) for lags 0..n-1 of chains ``x`` (draws, chains, k), by
     one zero-padded FFT along the draws (unnormalised: divide by n for the biased autocovariance)."""
     n = x.shape[0]
-    xc = x - x.mean(axis=0)
+    xc = np.moveaxis(x - x.mean(axis=0), 0, -1).copy()  # draws contiguous: 2-3x faster FFTs
     nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    f = np.fft.rfft(xc, n=nfft, axis=0)
-    return np.fft.irfft(f * np.conj(f), n=nfft, axis=0)[:n]
+    f = np.fft.rfft(xc, n=nfft, axis=-1)
+    acov = np.fft.irfft(f * np.conj(f), n=nfft, axis=-1)[..., :n]
+    return np.ascontiguousarray(np.moveaxis(acov, -1, 0))  # (n, m, k) as the callers sum over it
 
 
 def _tau(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
