@@ -446,7 +446,7 @@ def _check(chain: np.ndarray, previous_tmax: float | None = None) -> _Check:
     t0 = _tau(chain[n // 4:])
     burn = burn_in(n, float(np.max(t0)) if np.all(np.isfinite(t0)) else math.nan)
     kept = chain[burn:]
-    tau = _tau(kept)
+    tau = t0 if burn == n // 4 else _tau(kept)  # same samples: same tau
     tmax = float(np.max(tau)) if np.all(np.isfinite(tau)) else math.nan
     chk = _Check(burn, tau, tmax, math.nan, math.nan, math.nan, n=n)
     if previous_tmax is None or chk.tau_ok(n, previous_tmax):
