@@ -42,7 +42,7 @@ import pandas as pd
 
 from rrfrei._inputs import as_history
 
-__all__ = ["cycle_bounds", "dissipated_energy", "cycle_metrics", "METRIC_COLUMNS"]
+__all__ = ["cycle_bounds", "dissipated_energy", "cycle_metrics", "cycle_metrics_batch", "METRIC_COLUMNS"]
 
 METRIC_COLUMNS = ("cycle", "start", "end", "energy", "d_pos", "d_neg", "f_pos", "f_neg", "k_eff",
                   "beta_eff")
@@ -142,19 +142,50 @@ def cycle_metrics(disp, force, *, eps_frac: float = 0.02) -> pd.DataFrame:
     """
     u, f = _pair(disp, force)
     bounds = cycle_bounds(u, eps_frac=eps_frac)
-    energy = dissipated_energy(u, f)
-    rows = []
-    for i, (s, e) in enumerate(bounds):
-        seg = u[s:e + 1]
-        ip = s + int(np.argmax(seg))
-        im = s + int(np.argmin(seg))
-        dp, dm = u[ip], u[im]
-        fp, fm = f[ip], f[im]
-        edc = energy[e] - energy[s]
-        k_eff = (fp - fm) / (dp - dm) if dp != dm else math.nan
+    ip, im = _cycle_peaks(u, bounds)
+    m = _cycle_arrays(u, f[None, :], bounds, ip, im)
+    df = pd.DataFrame({
+        "cycle": np.arange(len(bounds), dtype=np.int64), "start": bounds[:, 0], "end": bounds[:, 1],
+        "energy": m["energy"][0], "d_pos": u[ip], "d_neg": u[im], "f_pos": f[ip], "f_neg": f[im],
+        "k_eff": m["k_eff"][0], "beta_eff": m["beta_eff"][0],
+    }, columns=list(METRIC_COLUMNS))
+    return df.astype({"cycle": np.int64, "start": np.int64, "end": np.int64})
+
+
+def cycle_metrics_batch(disp, forces, *, eps_frac: float = 0.02) -> dict[str, np.ndarray]:
+    """Per-cycle ``energy`` [kN*m], ``k_eff`` [kN/m] and ``beta_eff`` [-] of every row of
+    ``forces`` (rows, n) [kN] along one displacement history ``disp`` (n,) [m].
+
+    The values of :func:`cycle_metrics` for each row, computed for all rows at once (the cycles
+    and their peak samples depend on the displacement only).  Returns arrays (rows, cycles).
+    """
+    u = _as_1d(disp, "disp")
+    F = np.atleast_2d(np.asarray(forces, dtype=float))
+    if F.shape[1] != u.size:
+        raise ValueError(f"disp has {u.size} values but forces have {F.shape[1]} per row")
+    bounds = cycle_bounds(u, eps_frac=eps_frac)
+    ip, im = _cycle_peaks(u, bounds)
+    return _cycle_arrays(u, F, bounds, ip, im)
+
+
+def _cycle_peaks(u: np.ndarray, bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Samples of the largest and smallest displacement of each cycle (the first of ties)."""
+    ip = np.array([s + int(np.argmax(u[s:e + 1])) for s, e in bounds], dtype=np.int64)
+    im = np.array([s + int(np.argmin(u[s:e + 1])) for s, e in bounds], dtype=np.int64)
+    return ip, im
+
+
+def _cycle_arrays(u, F, bounds, ip, im) -> dict[str, np.ndarray]:
+    """EDC, k_eff = (F+ - F-) / (d+ - d-) and beta_eff = EDC / (2 pi k_eff d^2), d = (d+ - d-) / 2,
+    per row of ``F`` and cycle; NaN where d+ == d- or k_eff d^2 == 0."""
+    energy = np.zeros_like(F)
+    np.cumsum(0.5 * (F[:, 1:] + F[:, :-1]) * np.diff(u), axis=1, out=energy[:, 1:])
+    edc = energy[:, bounds[:, 1]] - energy[:, bounds[:, 0]]
+    dp, dm = u[ip], u[im]
+    span = dp - dm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k_eff = np.where(span != 0.0, (F[:, ip] - F[:, im]) / np.where(span != 0.0, span, 1.0), np.nan)
         d = 0.5 * (dp - dm)
         denom = 2.0 * math.pi * k_eff * d * d
-        beta = edc / denom if (math.isfinite(denom) and denom != 0.0) else math.nan
-        rows.append((i, int(s), int(e), edc, dp, dm, fp, fm, k_eff, beta))
-    df = pd.DataFrame(rows, columns=list(METRIC_COLUMNS))
-    return df.astype({"cycle": np.int64, "start": np.int64, "end": np.int64})
+        beta = np.where(np.isfinite(denom) & (denom != 0.0), edc / np.where(denom != 0.0, denom, 1.0), np.nan)
+    return {"energy": edc, "k_eff": k_eff, "beta_eff": beta}

@@ -133,6 +133,77 @@ def test_batched_ar1_likelihood_matches_the_pointwise_sum():
     assert pb.log_likelihood(theta)[0] == pytest.approx(expected, rel=1e-10)
 
 
+@pytest.mark.parametrize("noise", ["iid", "ar1"])
+def test_the_profiled_optimiser_objective_is_the_sampled_posterior_at_the_noise_mle(noise):
+    """One likelihood, two paths: the optimiser's profile (pointwise densities of the forces)
+    equals the sampler's Numba batch at the same theta, and its noise is the maximum."""
+    test = synthetic("plasticity", 5)
+    pb = setup_problem(test, "plasticity", noise=noise)
+    X = np.array([[3000.0, 1.5, 0.15, 0.0, 2.0], [2800.0, 1.4, 0.17, 0.001, 1.8]])
+    theta, lp = pb.profile_log_prob(X)
+    assert np.all(theta[:, :5] == X)
+    assert lp == pytest.approx(pb.log_prob(theta), rel=1e-10)
+    for w in range(2):  # the profiled noise maximises the likelihood over each noise parameter
+        for j in range(5, pb.ndim):  # sigma by 2 %, rho by 0.02
+            for step in (-0.02, 0.02):
+                moved = theta[w:w + 1].copy()
+                moved[0, j] += step * (moved[0, j] if j == 5 else 1.0)
+                assert pb.log_likelihood(moved)[0] < pb.log_likelihood(theta[w:w + 1])[0]
+
+
+def test_the_problem_counts_its_own_law_runs_and_only_those():
+    test = synthetic("plasticity", 6)
+    pb = setup_problem(test, "plasticity")
+    theta = np.array([[3000.0, 1.5, 0.15, 0.0, 2.0, 0.1]] * 3)
+    assert pb.n_evals == 0
+    pb.log_likelihood(theta)
+    pb.forces(pb.full_params(theta[:2]))
+    pb.profile_log_prob(theta[:1, :5])
+    assert pb.n_evals == 3 + 2 + 1
+    pb.forces(pb.full_params(theta), test=synthetic("plasticity", 7))  # another test: not counted
+    assert pb.n_evals == 6
+    with pytest.raises(AttributeError):
+        pb.n_evals = 0  # the counter is the problem's own
+
+
+def test_the_noise_model_is_resolved_once_and_bad_names_say_what_is_allowed():
+    from rrfrei.calibration.noise import NoiseModel, noise_model
+
+    ar1 = noise_model("ar1")
+    assert noise_model(ar1) is ar1 and ar1.params == ("sigma", "rho")
+    pb = setup_problem(synthetic("plasticity", 0), "plasticity", noise=ar1)
+    assert pb.noise is ar1 and pb.names[-2:] == ("sigma", "rho")
+    assert list(pb.lower[-2:]) == [0.0, -1.0] and list(pb.upper[-2:]) == [np.inf, 1.0]
+    for bad in ("gauss", "AR1", None):
+        with pytest.raises(ValueError, match=r"noise = .*expected one of iid, ar1"):
+            noise_model(bad)
+    with pytest.raises(ValueError, match="noise = 'white'"):
+        NoiseModel("white")
+
+
+def test_the_convergence_checks_statistics_are_emcees_tau_and_arviz_ess_and_rhat():
+    """The stopping rule's fast all-parameter estimators (one FFT) give exactly the reference
+    numbers: emcee's integrated time, arviz' bulk and tail ESS and rank-normalised R-hat."""
+    import arviz as az
+    import emcee
+
+    from rrfrei.calibration.sampler import _diagnose, _tau
+
+    rng = np.random.default_rng(1)
+    n, m, phi = 600, 16, np.array([0.5, 0.8, 0.95])  # AR(1) chains: tau = (1 + phi) / (1 - phi)
+    x = np.empty((n, m, phi.size))
+    x[0] = rng.standard_normal((m, phi.size))
+    for t in range(1, n):
+        x[t] = phi * x[t - 1] + rng.standard_normal((m, phi.size))
+    np.testing.assert_allclose(_tau(x), emcee.autocorr.integrated_time(x, tol=0), rtol=1e-12)
+    ds = {f"p{j}": x[:, :, j].T for j in range(phi.size)}  # walkers as chains
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = [min(float(az.ess(ds, method=k)[v]) for v in ds) for k in ("bulk", "tail")]
+        ref.append(max(float(az.rhat(ds)[v]) for v in ds))
+    assert _diagnose(x) == pytest.approx(tuple(ref), rel=1e-12)
+
+
 def test_a_failing_or_out_of_support_parameter_set_has_zero_posterior_density():
     pb = setup_problem(synthetic("plasticity", 0), "plasticity")
     bad = np.array([[3000.0, 1.5, 1.5, 0.0, 2.0, 0.1],  # alpha1 > 1 (outside bounds)

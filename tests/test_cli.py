@@ -206,3 +206,27 @@ def test_a_numerical_failure_exits_1_and_a_user_error_exits_2(monkeypatch, capsy
     assert rc == code
     assert len(err.strip().splitlines()) == 1 and text in err
     assert ("numerical failure" in err) == (code == 1)
+
+
+def _touch(path):
+    Path(path).write_text("drawn")
+
+
+def _fail(path):
+    raise OSError(f"cannot draw {path}")
+
+
+def test_the_calibrate_figures_worker_finishes_before_the_command_and_its_failure_is_not_silent(tmp_path):
+    """The figures are drawn in a second process while the command writes its files: the block
+    waits for it, and a failure there becomes an error of the command, not a missing file."""
+    from rrfrei.commands.calibrate import _in_parallel
+
+    with _in_parallel(_touch, tmp_path / "fig.png"):
+        pass
+    assert (tmp_path / "fig.png").read_text() == "drawn"
+    with pytest.raises(RuntimeError, match="_fail failed in its worker process"):
+        with _in_parallel(_fail, tmp_path / "x.png"):
+            pass
+    with pytest.raises(ValueError, match="the block's own error"):  # the block's error wins
+        with _in_parallel(_touch, tmp_path / "y.png"):
+            raise ValueError("the block's own error")

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rrfrei.energy import METRIC_COLUMNS, cycle_bounds, cycle_metrics, dissipated_energy
+from rrfrei.energy import METRIC_COLUMNS, cycle_bounds, cycle_metrics, cycle_metrics_batch, dissipated_energy
 
 
 def _ellipse(n_cycles, m, d0, f0, phi):
@@ -113,3 +113,20 @@ def test_no_full_cycle_gives_empty_metrics():
 def test_bad_input_raises_clear_value_error(u, f, match):
     with pytest.raises(ValueError, match=match):
         cycle_metrics(u, f)
+
+
+def test_the_batched_cycle_metrics_are_the_single_history_ones_row_by_row():
+    """Many force histories along one displacement history (posterior draws): every row equals
+    cycle_metrics of that row exactly, including a cycle with no stiffness (NaN beta)."""
+    rng = np.random.default_rng(3)
+    u, f = _ellipse(4, 60, 0.05, 10.0, 0.4)
+    F = f[None, :] * rng.uniform(0.5, 1.5, (7, 1)) + 0.1 * rng.standard_normal((7, u.size))
+    F[2] = 0.0  # no force: k_eff 0, beta_eff NaN
+    batch = cycle_metrics_batch(u, F)
+    for r in range(F.shape[0]):
+        one = cycle_metrics(u, F[r])
+        for k in ("energy", "k_eff", "beta_eff"):
+            np.testing.assert_array_equal(batch[k][r], one[k].to_numpy(float))
+    assert np.all(np.isnan(batch["beta_eff"][2])) and batch["energy"].shape == (7, len(cycle_bounds(u)))
+    with pytest.raises(ValueError, match="disp has"):
+        cycle_metrics_batch(u, F[:, :-1])

@@ -38,11 +38,25 @@ import numpy as np
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.calibration.checks import predict
 from rrfrei.calibration.compare import compare, elpd_loco  # the function shadows the module name
-from rrfrei.calibration.likelihood import NOISE_MODELS, Problem
+from rrfrei.calibration.likelihood import Problem
 from rrfrei.calibration.likelihood import likelihood_points as _lik_points
+from rrfrei.calibration.noise import NoiseModel, noise_model
 from rrfrei.calibration.priors import resolve_priors
-from rrfrei.calibration.results import Calibration, build_idata, loglik_pointwise, posterior_draws
-from rrfrei.calibration.sampler import MAX_STEPS, find_map, load_optimum, run_chain, save_optimum
+from rrfrei.calibration.results import (
+    Calibration,
+    build_idata,
+    loglik_pointwise,
+    posterior_draws,
+    summary_table,
+)
+from rrfrei.calibration.sampler import (
+    MAX_STEPS,
+    ensemble_size,
+    find_map,
+    load_optimum,
+    run_chain,
+    save_optimum,
+)
 from rrfrei.io import ShearTest, read_test
 from rrfrei.laws import LawSpec, get
 
@@ -65,14 +79,17 @@ class ConvergenceWarning(UserWarning):
     """The chain did not meet the convergence rule; the posterior may be unreliable."""
 
 
-def setup_problem(test: ShearTest, law: str | LawSpec, *, priors=None, noise: str = "iid",
-                  fixed: Mapping[str, float] | None = None,
+def setup_problem(test: ShearTest, law: str | LawSpec, *, priors=None,
+                  noise: str | NoiseModel = "iid", fixed: Mapping[str, float] | None = None,
                   likelihood_points: int | str | None = "auto") -> Problem:
     """The :class:`Problem` (free/fixed split, priors, likelihood samples) that :func:`calibrate`
-    samples; ``likelihood_points`` as in :func:`.likelihood.likelihood_points`."""
+    samples; ``likelihood_points`` as in :func:`.likelihood.likelihood_points`.
+
+    ``law`` and ``noise`` may be names or the resolved :class:`~rrfrei.laws.LawSpec` and
+    :class:`~.noise.NoiseModel` (used as they are: a caller that resolved them passes them down).
+    """
     spec = get(law)
-    if noise not in NOISE_MODELS:
-        raise ValueError(f"noise must be one of {', '.join(NOISE_MODELS)}, got {noise!r}")
+    noise = noise_model(noise)
     override_names = {str(k) for k in priors} if isinstance(priors, Mapping) else set()
     free, all_fixed = spec.resolve_fixed(
         test.geometry, fixed, frozenset(override_names),
@@ -92,7 +109,7 @@ def _fingerprint(problem: Problem, nw: int, seed: int) -> str:
     h = hashlib.sha256()
     for arr in (problem.test.disp, problem.test.force, problem.lik_idx):
         h.update(np.ascontiguousarray(arr).tobytes())
-    h.update(repr((problem.spec.name, problem.names, problem.noise, nw, int(seed),
+    h.update(repr((problem.spec.name, problem.names, problem.noise.name, nw, int(seed),
                    sorted(problem.fixed.items()),
                    sorted((k, p.kind, p.a, p.b) for k, p in problem.priors.items()))).encode())
     return h.hexdigest()[:16]
@@ -139,7 +156,7 @@ def calibrate(
     law: str | LawSpec,
     *,
     priors=None,
-    noise: str = "iid",
+    noise: str | NoiseModel = "iid",
     walkers: int | None = None,
     steps: int | None = None,
     seed: int = 0,
@@ -210,8 +227,8 @@ def calibrate(
         raise ValueError(f"max_steps = {max_steps!r}: expected an integer >= 2")
     if checkpoint_mismatch not in ("error", "restart"):
         raise ValueError(f"checkpoint_mismatch = {checkpoint_mismatch!r}: expected 'error' or 'restart'")
-    spec = get(law)
-    problem = setup_problem(test, spec, priors=priors, noise=noise, fixed=fixed,
+    spec = get(law)  # the law and the noise model are resolved here, once, and passed down
+    problem = setup_problem(test, spec, priors=priors, noise=noise_model(noise), fixed=fixed,
                             likelihood_points=likelihood_points)
     if spec.uses_velocity and not test.has_time:
         warnings.warn(
@@ -219,15 +236,10 @@ def calibrate(
             "which are evaluated quasi-statically (velocity 0); rate effects cannot be judged",
             UserWarning, stacklevel=2,
         )
-    nw = walkers if walkers is not None else max(32, 4 * problem.ndim)
-    if not isinstance(nw, (int, np.integer)) or nw < 2 * problem.ndim:
-        raise ValueError(
-            f"walkers = {walkers!r} is too few for {problem.ndim} sampled quantities; "
-            f"use >= {2 * problem.ndim}"
-        )
+    nw = ensemble_size(walkers, problem.ndim)  # the one rule (run_chain applies the same)
     if steps is not None and (not isinstance(steps, (int, np.integer)) or steps < 2):
         raise ValueError(f"steps must be an integer >= 2 or None (run to convergence), got {steps!r}")
-    fingerprint = _fingerprint(problem, nw + nw % 2, seed)
+    fingerprint = _fingerprint(problem, nw, seed)
     stored = load_optimum(checkpoint) if checkpoint is not None else None
     if stored is not None and (stored.get("fingerprint", fingerprint) != fingerprint
                                or stored.get("names") != list(problem.names)
@@ -289,9 +301,10 @@ def calibrate(
     }
     idata = build_idata(problem, chain, logp, burn=burn, thin=thin, theta_map=theta_map,
                         fixed=problem.fixed, diagnostics=diagnostics, seed=seed)
-    cal = Calibration.from_idata(idata)
-    rhat = float(cal.summary["R-hat"].max())
-    ess = float(cal.summary["ESS"].min())
+    summary = summary_table(idata, spec, dict(zip(problem.names, map(float, theta_map))),
+                            problem.free, problem.noise)
+    rhat = float(summary["R-hat"].max())
+    ess = float(summary["ESS"].min())
     converged = bool(res.converged_tau and rhat < 1.05 and res.rhat < 1.05)
     note = res.tau_note
     if rhat >= 1.05:
@@ -302,7 +315,7 @@ def calibrate(
                         "seconds": time.perf_counter() - t0})
     idata.posterior.attrs["diagnostics"] = json.dumps(diagnostics)
     idata.posterior.attrs["converged"] = int(converged)
-    cal = Calibration.from_idata(idata)
+    cal = Calibration.from_idata(idata, spec=spec, summary=summary)
     if not converged:
         warnings.warn(
             f"calibration of {spec.name!r} on {test.name!r} has NOT converged: {advice(diagnostics)}"

@@ -35,7 +35,6 @@ import numpy as np
 import pandas as pd
 
 from rrfrei.io import ShearTest
-from rrfrei.laws import get
 
 __all__ = ["Prediction", "predict", "asce_7_22_checks", "nrmse", "coverage"]
 
@@ -114,29 +113,29 @@ def predict(calibration, test: ShearTest, *, n: int = 200, seed: int = 0, level:
     seed : seed of the draws and of the simulated noise.
     level : band probability (default 0.95).
     """
-    from rrfrei.calibration.likelihood import Problem
-    from rrfrei.calibration.results import _as_calibration, simulate_noise
+    from rrfrei.calibration.likelihood import law_forces
+    from rrfrei.calibration.noise import noise_model
+    from rrfrei.calibration.results import _as_calibration
 
     if not 0 < level < 1:
         raise ValueError(f"level must be in (0, 1), got {level}")
     cal = _as_calibration(calibration)
-    spec = get(cal.law)
+    spec = cal.spec
+    noise = noise_model(cal.noise)
     df = cal.draws(n, seed, noise=True)
     P = np.ascontiguousarray(df[list(spec.param_names)].to_numpy(float))
-    prob = Problem(spec, test, free=(), fixed=cal.map_params(), noise=cal.noise, priors={})
-    F, status = prob.forces(P)
+    F, status = law_forces(spec, P, test)
     ok = status == 0
     if not ok.any():
         raise ValueError(f"law {cal.law!r} failed along test {test.name!r} for every posterior draw")
     F = F[ok]
     rng = np.random.default_rng(seed + 1)
-    rho = df["rho"].to_numpy(float)[ok] if cal.noise == "ar1" else None
-    Fn = F + simulate_noise(rng, df["sigma"].to_numpy(float)[ok], rho, F.shape[1])
+    Fn = F + noise.simulate(rng, df[list(noise.params)].to_numpy(float)[ok], F.shape[1])
     a = (1 - level) / 2
     lo_p, hi_p = np.quantile(F, [a, 1 - a], axis=0)
     lo, hi = np.quantile(Fn, [a, 1 - a], axis=0)
     mean = F.mean(axis=0)
-    Fmap, st = prob.forces(spec.pack(cal.map_params())[None, :])
+    Fmap, st = law_forces(spec, spec.pack(cal.map_params())[None, :], test)
     if st[0] != 0:
         raise ValueError(f"law {cal.law!r} at its MAP failed along test {test.name!r}")
     fmap = Fmap[0]
@@ -167,14 +166,12 @@ def _cycle_table(test: ShearTest, fmap: np.ndarray, F: np.ndarray, a: float) -> 
         out[f"{k}_test"] = mt[k].to_numpy(float)
         out[f"{k}_map"] = mm[k].to_numpy(float) if len(mm) == len(mt) else np.nan
     if len(mt):
-        per = np.full((F.shape[0], len(mt), len(keys)), np.nan)
-        for d in range(F.shape[0]):
-            md = _cycle_metrics(test.disp, F[d])
-            if len(md) == len(mt):
-                per[d] = md[list(keys)].to_numpy(float)
-        for j, k in enumerate(keys):
-            out[f"{k}_lo"] = np.nanquantile(per[:, :, j], a, axis=0)
-            out[f"{k}_hi"] = np.nanquantile(per[:, :, j], 1 - a, axis=0)
+        from rrfrei.energy import cycle_metrics_batch
+
+        per = cycle_metrics_batch(test.disp, F)  # the test's cycles: they depend on disp only
+        for k in keys:
+            out[f"{k}_lo"] = np.nanquantile(per[k], a, axis=0)
+            out[f"{k}_hi"] = np.nanquantile(per[k], 1 - a, axis=0)
     for c in mt.columns:
         if c not in keys and c not in out.columns and c != "cycle":
             out[c] = mt[c].to_numpy()

@@ -7,9 +7,11 @@ displacement-controlled analysis) and the residuals ``e`` are
 
 * ``noise="iid"``: independent N(0, sigma^2);
 * ``noise="ar1"``: stationary AR(1), ``e_i = rho e_{i-1} + w_i``, ``w_i ~ N(0, sigma^2)``,
-  ``e_1 ~ N(0, sigma^2 / (1 - rho^2))``.  The pointwise log-likelihood of sample i is the
-  conditional density ``log p(e_i | e_{i-1})`` (and the marginal for i = 1), so the points sum to
-  the joint log-likelihood (Box & Jenkins, *Time Series Analysis*, ch. 7).
+  ``e_1 ~ N(0, sigma^2 / (1 - rho^2))``.
+
+The noise model (parameters, bounds, priors, MLE, pointwise densities) is one
+:class:`~.noise.NoiseModel` (:mod:`.noise`); the batch kernels below fuse the law run with the
+sum of its pointwise densities (their equality is tested).
 
 The walkers of the ensemble are evaluated in parallel (``prange``), each along the whole history
 with preallocated work rows: no allocation per time step.  The kernels
@@ -38,11 +40,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rrfrei.calibration.noise import NOISE_MODELS, NoiseModel, noise_model, pointwise_from_residuals
 from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, Prior
 from rrfrei.laws.specialise import history, instantiate
 
-__all__ = ["Problem", "NOISE_MODELS", "DENSE_POINTS", "LIKELIHOOD_POINTS", "likelihood_points"]
+__all__ = ["Problem", "NOISE_MODELS", "DENSE_POINTS", "LIKELIHOOD_POINTS", "likelihood_points",
+           "law_forces", "pointwise_from_residuals"]
 
 DENSE_POINTS = 5000
 """Records with more samples than this are "dense": the likelihood uses a regular subsample."""
@@ -75,7 +79,6 @@ def likelihood_points(n: int, points: int | str | None = "auto") -> np.ndarray:
     stride = max(1, math.ceil(n / target))
     return np.arange(0, n, stride, dtype=np.int64)
 
-NOISE_MODELS = ("iid", "ar1")
 _LOG2PI = math.log(2.0 * math.pi)
 BATCH = "rrfrei.calibration._batch"
 """The template of the batched kernels (``forces_batch``, ``loglik_batch``), bound per law."""
@@ -87,41 +90,56 @@ def batch_kernels(spec: LawSpec):
     return instantiate(BATCH, {"law_drive": history(spec)}, spec.name)
 
 
-def pointwise_from_residuals(resid: np.ndarray, sigma: np.ndarray, rho: np.ndarray | None) -> np.ndarray:
-    """(draws, points) log densities of residuals ``resid`` (draws, points)."""
-    s = np.asarray(sigma, dtype=float)[:, None]
-    if rho is None:
-        return -0.5 * (resid / s) ** 2 - np.log(s) - 0.5 * _LOG2PI
-    r = np.asarray(rho, dtype=float)[:, None]
-    out = np.empty_like(resid)
-    var0 = s[:, 0] ** 2 / (1 - r[:, 0] ** 2)
-    out[:, 0] = -0.5 * resid[:, 0] ** 2 / var0 - 0.5 * np.log(var0) - 0.5 * _LOG2PI
-    innov = resid[:, 1:] - r * resid[:, :-1]
-    out[:, 1:] = -0.5 * (innov / s) ** 2 - np.log(s) - 0.5 * _LOG2PI
-    return out
+def law_forces(spec: LawSpec, P: np.ndarray, test: ShearTest) -> tuple[np.ndarray, np.ndarray]:
+    """(forces (rows, n) [kN], status (rows,)) of law parameter rows ``P`` driven along ``test``'s
+    displacement history (one batch, walkers in parallel); a failed row is NaN, status < 0."""
+    P = np.ascontiguousarray(np.atleast_2d(P), dtype=float)
+    disp = np.ascontiguousarray(test.disp)
+    use_time = bool(test.has_time)
+    time = np.ascontiguousarray(test.time if use_time else np.zeros_like(disp))
+    return _forces(spec, P, disp, time, use_time)
+
+
+def _forces(spec: LawSpec, P, disp, time, use_time) -> tuple[np.ndarray, np.ndarray]:
+    F = np.empty((P.shape[0], disp.size))
+    T = np.empty_like(F)
+    status = np.zeros(P.shape[0], dtype=np.int64)
+    batch_kernels(spec).forces_batch(P, np.array(spec.initial_state, dtype=float), disp, time,
+                                     use_time, F, T, status)
+    F[status != 0] = np.nan
+    return F, status
 
 
 @dataclass(eq=False)
 class Problem:
-    """A law, a test, the fixed values and the priors: everything the sampler needs.
+    """A law, a test, the fixed values, the noise model and the priors: everything the optimiser
+    and the sampler need, behind public methods.
 
-    ``theta`` rows are ``[free law parameters (spec order)..., sigma, (rho)]``.  ``lik_idx``: the
-    samples the likelihood uses (:func:`likelihood_points`; None: all of them).
+    ``theta`` rows are ``[free law parameters (spec order)..., noise parameters]`` (``sigma``
+    [kN], and ``rho`` for AR(1)); their bounds are :attr:`lower` / :attr:`upper`, the one place
+    the sampler and the optimiser read them.  ``lik_idx``: the samples the likelihood uses
+    (:func:`likelihood_points`; None: all of them).  ``noise`` is a :class:`~.noise.NoiseModel`
+    (a name is resolved with :func:`~.noise.noise_model`).  The problem counts the law
+    evaluations of its own test (:attr:`n_evals`).
+
+    Two evaluation paths of one likelihood: :meth:`log_likelihood` (the Numba batch: the law run
+    and the residual density fused in one pass per walker, for the sampler) and
+    :meth:`pointwise` (the noise model's per-sample densities of given forces, stored for LOO and
+    used by the optimiser's profile, :meth:`profile_log_prob`); their sums agree to rounding.
     """
 
     spec: LawSpec
     test: ShearTest
     free: tuple[str, ...]
     fixed: dict[str, float]
-    noise: str
+    noise: NoiseModel
     priors: dict[str, Prior]
     lik_idx: np.ndarray | None = None
     template: np.ndarray = field(init=False)
     free_idx: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
-        if self.noise not in NOISE_MODELS:
-            raise ValueError(f"noise must be one of {NOISE_MODELS}, got {self.noise!r}")
+        self.noise = noise_model(self.noise)
         names = self.spec.param_names
         tmpl = np.zeros(len(names))
         for i, p in enumerate(self.spec.params):
@@ -132,29 +150,34 @@ class Problem:
         self.template = tmpl
         self.free_idx = np.array([names.index(n) for n in self.free], dtype=np.int64)
         self._disp = np.ascontiguousarray(self.test.disp)
-        self._obs = np.ascontiguousarray(self.test.force)
+        obs = np.ascontiguousarray(self.test.force)
         n = self._disp.size
         idx = np.arange(n, dtype=np.int64) if self.lik_idx is None else np.asarray(self.lik_idx, np.int64)
         if idx.ndim != 1 or idx.size < 2 or idx.min() < 0 or idx.max() >= n or np.any(np.diff(idx) <= 0):
             raise ValueError(f"lik_idx must be >= 2 increasing sample indices in [0, {n}), got {idx!r}")
         self.lik_idx = np.ascontiguousarray(idx)
-        self._obs_l = np.ascontiguousarray(self._obs[idx])
+        self._obs_l = np.ascontiguousarray(obs[idx])
         self._use_time = bool(self.test.has_time)
         self._time = np.ascontiguousarray(self.test.time if self._use_time else np.zeros_like(self._disp))
         self._state0 = np.array(self.spec.initial_state, dtype=float)
-        bounds = [self.spec.bounds((n,))[0] for n in self.free]
-        self._lower = np.array([b[0] for b in bounds] + [0.0] + ([-1.0] if self.noise == "ar1" else []))
-        self._upper = np.array([b[1] for b in bounds] + [np.inf] + ([1.0] if self.noise == "ar1" else []))
-        self.n_evals = 0
+        law_bounds = self.spec.bounds(self.free).reshape(-1, 2)
+        self.lower = np.concatenate([law_bounds[:, 0], self.noise.lower])
+        self.upper = np.concatenate([law_bounds[:, 1], self.noise.upper])
+        self._n_evals = 0
 
     # --- layout ---------------------------------------------------------------------------
     @property
     def names(self) -> tuple[str, ...]:
-        return self.free + (("sigma", "rho") if self.noise == "ar1" else ("sigma",))
+        return self.free + self.noise.params
 
     @property
     def ndim(self) -> int:
         return len(self.names)
+
+    @property
+    def n_evals(self) -> int:
+        """Law runs along the problem's own test so far (likelihood, forces, profile)."""
+        return self._n_evals
 
     @property
     def n_points(self) -> int:
@@ -190,24 +213,22 @@ class Problem:
         return self._obs_l[None, :] - self.at_points(F)
 
     def full_params(self, theta: np.ndarray) -> np.ndarray:
-        """(nw, n_params) law parameter rows (free + fixed + defaults) for ``theta`` rows."""
+        """(nw, n_params) law parameter rows (free + fixed + defaults) for ``theta`` rows (the
+        noise columns, if any, are ignored)."""
         theta = np.atleast_2d(np.asarray(theta, dtype=float))
         P = np.repeat(self.template[None, :], theta.shape[0], axis=0)
         P[:, self.free_idx] = theta[:, : len(self.free)]
         return np.ascontiguousarray(P)
 
     def noise_params(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        theta = np.atleast_2d(theta)
-        k = len(self.free)
-        sigma = np.ascontiguousarray(theta[:, k])
-        rho = np.ascontiguousarray(theta[:, k + 1]) if self.noise == "ar1" else None
-        return sigma, rho
+        """(sigma, rho or None) columns of ``theta`` rows."""
+        return self.noise.split(np.atleast_2d(theta)[:, len(self.free):])
 
     # --- densities ------------------------------------------------------------------------
     def log_prior(self, theta: np.ndarray) -> np.ndarray:
         theta = np.atleast_2d(np.asarray(theta, dtype=float))
         lp = np.zeros(theta.shape[0])
-        inside = np.all((theta >= self._lower) & (theta <= self._upper), axis=1)
+        inside = np.all((theta >= self.lower) & (theta <= self.upper), axis=1)
         lp[~inside] = -np.inf
         for j, name in enumerate(self.names):
             lp += self.priors[name].logpdf(theta[:, j])
@@ -221,6 +242,7 @@ class Problem:
         return lp
 
     def log_likelihood(self, theta: np.ndarray) -> np.ndarray:
+        """Joint log-likelihood of ``theta`` rows (the Numba batch, walkers in parallel)."""
         theta = np.atleast_2d(np.asarray(theta, dtype=float))
         nw = theta.shape[0]
         P = self.full_params(theta)
@@ -231,7 +253,7 @@ class Problem:
         batch_kernels(self.spec).loglik_batch(
             P, self._state0, self._disp, self._time, self._use_time, self._obs_l, self.lik_idx,
             sigma, rho if rho is not None else np.zeros(nw), rho is not None, F, T, out)
-        self.n_evals += nw
+        self._n_evals += nw
         return out
 
     def log_prob(self, theta: np.ndarray) -> np.ndarray:
@@ -244,31 +266,38 @@ class Problem:
         lp[~np.isfinite(lp)] = -np.inf
         return lp
 
-    # --- forces and pointwise -------------------------------------------------------------
-    def forces(self, P: np.ndarray, test: ShearTest | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(forces (nw, n), status (nw,)) of law parameter rows ``P`` along ``test`` (default: own)."""
-        P = np.ascontiguousarray(np.atleast_2d(P), dtype=float)
-        if test is None:
-            disp, time, use_time = self._disp, self._time, self._use_time
-        else:
-            disp = np.ascontiguousarray(test.disp)
-            use_time = bool(test.has_time)
-            time = np.ascontiguousarray(test.time if use_time else np.zeros_like(disp))
-        F = np.empty((P.shape[0], disp.size))
-        T = np.empty_like(F)
-        status = np.zeros(P.shape[0], dtype=np.int64)
-        batch_kernels(self.spec).forces_batch(P, self._state0, disp, time, use_time, F, T, status)
-        F[status != 0] = np.nan
-        return F, status
+    def pointwise(self, F_points: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """(rows, n_like) log densities of the residuals of model forces ``F_points`` (already
+        at the likelihood's samples) given the noise columns of ``theta`` rows."""
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        return self.noise.pointwise(self.residuals_at_points(F_points), theta[:, len(self.free):])
 
-    def profile_noise(self, F: np.ndarray) -> np.ndarray:
-        """Maximum-likelihood noise parameters per row of forces ``F``: (nw, 1 or 2)."""
-        r = self.residuals(F)
-        if self.noise == "iid":
-            return np.sqrt(np.mean(r * r, axis=1))[:, None]
-        num = np.sum(r[:, 1:] * r[:, :-1], axis=1)
-        den = np.sum(r[:, :-1] ** 2, axis=1)
-        rho = np.clip(num / np.where(den > 0, den, 1.0), -0.98, 0.98)
-        innov = r[:, 1:] - rho[:, None] * r[:, :-1]
-        sigma = np.sqrt(np.mean(innov**2, axis=1))
-        return np.column_stack([sigma, rho])
+    def profile_log_prob(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(theta rows, log posterior) for free law-parameter rows ``X`` with the noise
+        parameters profiled out: set to their maximum-likelihood values given the residuals
+        (:meth:`.noise.NoiseModel.mle`), the optimiser's objective.  A failing law row is -inf."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        k = len(self.noise.params)
+        F, status = self.forces(self.full_params(X))
+        noise = np.full((X.shape[0], k), np.nan)
+        ok = status == 0
+        if ok.any():
+            noise[ok] = self.noise.mle(self.residuals(F[ok]))
+        theta = np.column_stack([X, noise])
+        lp = self.log_prior(np.where(np.isfinite(theta), theta, 1.0))
+        lp[~ok] = -np.inf
+        good = np.flatnonzero(np.isfinite(lp))
+        if good.size:
+            lp[good] += self.pointwise(self.at_points(F[good]), theta[good]).sum(axis=1)
+        lp[~np.isfinite(lp)] = -np.inf
+        return theta, lp
+
+    # --- forces ---------------------------------------------------------------------------
+    def forces(self, P: np.ndarray, test: ShearTest | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(forces (nw, n), status (nw,)) of law parameter rows ``P`` along ``test`` (default:
+        the problem's own, whose runs count in :attr:`n_evals`); see :func:`law_forces`."""
+        if test is not None:
+            return law_forces(self.spec, P, test)
+        P = np.ascontiguousarray(np.atleast_2d(P), dtype=float)
+        self._n_evals += P.shape[0]
+        return _forces(self.spec, P, self._disp, self._time, self._use_time)

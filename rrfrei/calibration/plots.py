@@ -26,7 +26,7 @@ def pair_plot(cal, *, max_points: int = 1000, seed: int = 0):
         for j in range(k):
             ax = axes[i, j]
             if j > i:
-                ax.axis("off")
+                ax.remove()  # the upper triangle is empty: no axes to lay out and draw
                 continue
             if i == j:
                 ax.hist(th[:, i], bins=30, color="tab:blue", alpha=0.7)

@@ -17,11 +17,13 @@ keeping the base prior's *kind*:
 * ``uniform``     -> unchanged (a dimensional uniform prior is a deliberate statement).
 
 Dimensionless parameters, parameters with time in their unit (rates, viscosities) and geometry
-keep the base prior.  Every prior is then cut to the parameter's physical bounds.  Pass
+keep the base prior.  Every prior is then cut to the parameter's physical bounds (by the
+log prior of :class:`~.likelihood.Problem`, whose ``lower`` / ``upper`` hold them).  Pass
 ``priors="registry"`` to :func:`rrfrei.calibrate` to use the base priors unchanged, or a mapping /
 TOML file to override any of them.
 
-Noise priors: ``sigma`` [kN] ~ halfnormal(RMS(F)); ``rho`` (AR(1) correlation) ~ uniform(-0.99, 0.99).
+Noise priors (:meth:`.noise.NoiseModel.priors`): ``sigma`` [kN] ~ halfnormal(RMS(F)); ``rho``
+(AR(1) correlation) ~ uniform(-0.99, 0.99).
 """
 
 from __future__ import annotations
@@ -34,9 +36,10 @@ from pathlib import Path
 import numpy as np
 
 from rrfrei._inputs import read_toml
+from rrfrei.calibration.noise import NoiseModel
 from rrfrei.laws import LawSpec, Prior
 
-__all__ = ["data_scaled_prior", "resolve_priors", "unit_exponents", "noise_priors", "PriorSet"]
+__all__ = ["data_scaled_prior", "resolve_priors", "unit_exponents", "PriorSet"]
 
 
 def unit_exponents(unit: str) -> dict[str, float] | None:
@@ -80,14 +83,6 @@ def data_scaled_prior(base: Prior, unit: str, force_scale: float, disp_scale: fl
     return Prior("halfnormal", s)
 
 
-def noise_priors(force: np.ndarray, noise: str) -> dict[str, Prior]:
-    rms = float(np.sqrt(np.mean(np.square(force))))
-    out = {"sigma": Prior("halfnormal", max(rms, 1e-12))}
-    if noise == "ar1":
-        out["rho"] = Prior("uniform", -0.99, 0.99)
-    return out
-
-
 class PriorSet(dict):
     """``{name: Prior}`` for the sampled quantities (law parameters, then sigma, rho)."""
 
@@ -122,10 +117,10 @@ def resolve_priors(
     free: tuple[str, ...],
     force: np.ndarray,
     disp: np.ndarray,
-    noise: str,
+    noise: NoiseModel,
     priors=None,
 ) -> PriorSet:
-    """Priors of ``free`` law parameters and the noise parameters.
+    """Priors of ``free`` law parameters and the noise parameters (``noise.priors``).
 
     Order of precedence: user override > data-scaled registry prior (or the raw registry prior
     when ``priors == "registry"``).
@@ -145,7 +140,7 @@ def resolve_priors(
                 f"law {spec.name!r}: parameter {name!r} has no registry prior; give one in priors="
             )
         out[name] = data_scaled_prior(ps.prior, ps.unit, fs, ds) if scaled else ps.prior
-    for name, pr in noise_priors(force, noise).items():
+    for name, pr in noise.priors(force).items():
         out[name] = overrides.get(name, pr)
     unknown = [k for k in overrides if k not in out]
     if unknown:

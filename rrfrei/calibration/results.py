@@ -24,10 +24,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rrfrei.calibration.noise import NoiseModel, noise_model, simulate_noise
 from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, get
 
-__all__ = ["Calibration", "posterior_draws", "loglik_pointwise", "build_idata"]
+__all__ = ["Calibration", "posterior_draws", "loglik_pointwise", "build_idata", "summary_table",
+           "simulate_noise"]
 
 MAX_DRAWS = 1000
 """Posterior draws kept (walkers x draws) after burn-in and thinning."""
@@ -96,7 +98,7 @@ class Calibration:
     @property
     def sampled(self) -> tuple[str, ...]:
         """Free law parameters then the noise parameters (the posterior's variables)."""
-        return self.free + (("sigma", "rho") if self.noise == "ar1" else ("sigma",))
+        return self.free + noise_model(self.noise).params
 
     def theta(self) -> np.ndarray:
         """(draws, sampled) matrix of all stored posterior draws (chains stacked)."""
@@ -152,11 +154,21 @@ class Calibration:
         return cls.from_idata(idata)
 
     @classmethod
-    def from_idata(cls, idata) -> Calibration:
+    def from_idata(cls, idata, *, spec: LawSpec | None = None,
+                   summary: pd.DataFrame | None = None) -> Calibration:
+        """Rebuild a calibration from an InferenceData written by :func:`rrfrei.calibrate`.
+
+        ``spec`` (the law named in the attributes, already resolved) and ``summary`` (its
+        :func:`summary_table`, already computed) spare :func:`rrfrei.calibrate` a second lookup
+        and a second pass of arviz' ESS and R-hat; by default both come from ``idata``.
+        """
         if "posterior" not in idata.groups() or "law" not in idata.posterior.attrs:
             raise ValueError("this InferenceData was not written by rrfrei.calibrate (no law in attrs)")
         a = idata.posterior.attrs
-        spec = get(str(a["law"]))
+        if spec is None:
+            spec = get(str(a["law"]))
+        elif spec.name != str(a["law"]):
+            raise ValueError(f"spec = {spec.name!r}: expected the law of the InferenceData, {a['law']!r}")
         cd = idata.constant_data
         test = ShearTest(
             name=str(a["test_name"]),
@@ -173,7 +185,8 @@ class Calibration:
         diag = json.loads(a["diagnostics"])
         return cls(
             law=spec.name, spec=spec, test=test, idata=idata, map=mp, sigma=float(mp["sigma"]),
-            summary=_summary(idata, spec, mp, tuple(json.loads(a["free"])), str(a["noise"])),
+            summary=summary if summary is not None else summary_table(
+                idata, spec, mp, tuple(json.loads(a["free"])), str(a["noise"])),
             converged=bool(int(a["converged"])), fixed=json.loads(a["fixed"]), noise=str(a["noise"]),
             diagnostics=diag,
         )
@@ -268,10 +281,13 @@ def _full_dict(spec: LawSpec, fixed: Mapping[str, float], free: Mapping[str, flo
     return out
 
 
-def _summary(idata, spec: LawSpec, mp: Mapping[str, float], free: tuple[str, ...],
-             noise: str) -> pd.DataFrame:
+def summary_table(idata, spec: LawSpec, mp: Mapping[str, float], free: tuple[str, ...],
+                  noise: str | NoiseModel) -> pd.DataFrame:
+    """The :attr:`Calibration.summary` of a posterior: unit, mean, MAP, sd, 2.5 %, 97.5 %, bulk
+    ESS and R-hat (arviz) per sampled quantity."""
     az = _az()
-    names = list(free) + (["sigma", "rho"] if noise == "ar1" else ["sigma"])
+    nm = noise_model(noise)
+    names = list(free) + list(nm.params)
     post = idata.posterior
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -280,7 +296,7 @@ def _summary(idata, spec: LawSpec, mp: Mapping[str, float], free: tuple[str, ...
     rows = []
     for n in names:
         x = post[n].values.reshape(-1)
-        unit = spec.param(n).unit if n in free else ("kN" if n == "sigma" else "-")
+        unit = spec.param(n).unit if n in free else nm.units[nm.params.index(n)]
         rows.append({
             "parameter": n, "unit": unit, "mean": float(np.mean(x)), "MAP": float(mp[n]),
             "sd": float(np.std(x, ddof=1)) if x.size > 1 else float("nan"),
@@ -311,10 +327,7 @@ def build_idata(problem, chain, logp, *, burn: int, thin: int, theta_map, fixed,
         F[b: b + 128] = problem.at_points(Fb)
         status[b: b + 128] = sb
     sigma, rho = problem.noise_params(flat)
-    from rrfrei.calibration.likelihood import pointwise_from_residuals
-
-    resid = problem.residuals_at_points(F)
-    ll = pointwise_from_residuals(resid, sigma, rho)
+    ll = problem.pointwise(F, flat)
     ll[status != 0] = -np.inf
     store = np.float32 if sub else np.float64
     test = problem.test
@@ -344,7 +357,7 @@ def build_idata(problem, chain, logp, *, burn: int, thin: int, theta_map, fixed,
     a["law"] = problem.spec.name
     a["free"] = json.dumps(list(problem.free))
     a["fixed"] = json.dumps({k: float(v) for k, v in fixed.items()})
-    a["noise"] = problem.noise
+    a["noise"] = problem.noise.name
     a["priors"] = json.dumps({k: [p.kind, p.a, p.b] for k, p in problem.priors.items()})
     a["disp_min_m"] = float(test.disp.min())
     a["disp_max_m"] = float(test.disp.max())
@@ -371,20 +384,6 @@ def _from_dict(az, posterior, ll, nw, nd, lp, test, n_points):
         dims={"force": ["sample"], "disp": ["sample"], "time": ["sample"]},
         coords={"sample": np.arange(n_points)},
     )
-
-
-def simulate_noise(rng: np.random.Generator, sigma: np.ndarray, rho: np.ndarray | None, n: int) -> np.ndarray:
-    """Residual histories (..., n) from the noise model with per-draw sigma (, rho)."""
-    sigma = np.asarray(sigma, dtype=float)
-    w = rng.standard_normal(sigma.shape + (n,)) * sigma[..., None]
-    if rho is None:
-        return w
-    r = np.asarray(rho, dtype=float)
-    e = np.empty_like(w)
-    e[..., 0] = w[..., 0] / np.sqrt(1.0 - r**2)
-    for i in range(1, n):
-        e[..., i] = r * e[..., i - 1] + w[..., i]
-    return e
 
 
 # ---------------------------------------------------------------------------------------------
@@ -435,7 +434,7 @@ def loglik_pointwise(source, test: ShearTest, *, n: int | None = None, seed: int
     ``sigma`` (and ``rho`` for AR(1) noise: the noise model is AR(1) exactly when ``rho`` is a
     column).  Failing parameter sets give ``-inf`` rows.
     """
-    from rrfrei.calibration.likelihood import Problem, pointwise_from_residuals
+    from rrfrei.calibration.likelihood import law_forces
 
     if isinstance(source, tuple) and len(source) == 2:
         law, df = source
@@ -446,18 +445,17 @@ def loglik_pointwise(source, test: ShearTest, *, n: int | None = None, seed: int
         law, df = posterior_draws(source, n, seed)
         if "sigma" not in df.columns:
             raise ValueError("draws need a 'sigma' column [kN] to evaluate a likelihood")
+        spec = get(law)
     else:
-        law, df = posterior_draws(source, n, seed)
-    spec = get(law)
-    noise = "ar1" if "rho" in df.columns else "iid"
+        cal = _as_calibration(source)
+        spec, df = cal.spec, cal.draws(n, seed, noise=True)
+    noise = noise_model("ar1" if "rho" in df.columns else "iid")
     P = np.ascontiguousarray(
         np.column_stack([df[p.name].to_numpy(float) if p.name in df.columns else np.full(len(df), p.default)
                          for p in spec.params])
     )
-    prob = Problem(spec, test, free=(), fixed=spec.as_dict(P[0]), noise=noise, priors={})
-    F, status = prob.forces(P)
+    F, status = law_forces(spec, P, test)
     resid = np.asarray(test.force)[None, :] - F
-    ll = pointwise_from_residuals(resid, df["sigma"].to_numpy(float),
-                                  df["rho"].to_numpy(float) if noise == "ar1" else None)
+    ll = noise.pointwise(resid, df[list(noise.params)].to_numpy(float))
     ll[status != 0] = -np.inf
     return ll

@@ -184,9 +184,8 @@ def run(args: argparse.Namespace) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    get(args.law)  # unknown law -> user error before reading anything heavy
+    spec = get(args.law)  # resolved once: an unknown law is a user error before anything heavy
     test = load(args.test, args)
     holdouts = [load(h, args) for h in args.holdout]
     out = Path(args.out)
@@ -202,7 +201,7 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
         try:
-            cal = calibrate(test, args.law, noise=args.noise, seed=args.seed, walkers=args.walkers,
+            cal = calibrate(test, spec, noise=args.noise, seed=args.seed, walkers=args.walkers,
                             steps=args.steps, priors=args.priors, checkpoint=checkpoint,
                             progress=not (args.no_progress or args.quiet or args.json),
                             max_steps=args.max_steps, time_budget=budget,
@@ -225,34 +224,23 @@ def run(args: argparse.Namespace) -> int:
               "(none: no limit)", file=sys.stderr)
     elif not cal.converged:
         print(f"rrfrei calibrate: warning: NOT converged: {advice(d, cli=True)}", file=sys.stderr)
-    cal.to_netcdf(out / "posterior.nc")
-    cal.summary.to_csv(out / "summary.csv")
     pred = predict(cal, test, seed=args.seed)
-    pred.cycles.to_csv(out / "cycles.csv", index=False)
-    pred.asce.to_csv(out / "asce_7_22.csv", index=False)
-    az = _az()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        loo = az.loo(cal.idata, var_name="force")
-    figs = {
-        "pair": plots.pair_plot(cal, seed=args.seed),
-        "loop": plots.loop_plot(pred),
-        "energy_per_cycle": plots.energy_plot(pred),
-        "cumulative_energy": plots.cumulative_plot(pred),
-    }
-    hold = {}
-    if holdouts:
-        fig, axes = plt.subplots(1, len(holdouts), figsize=(4.2 * len(holdouts), 3.6), squeeze=False,
-                                 constrained_layout=True)
-        for ax, (path, h) in zip(axes[0], zip(args.holdout, holdouts)):
-            hp = predict(cal, h, seed=args.seed)
+    held = [(path, h, predict(cal, h, seed=args.seed)) for path, h in zip(args.holdout, holdouts)]
+    # the figures (pure matplotlib, ~2 s) are drawn by a forked process on the other core while
+    # this one writes the posterior and the tables and computes LOO
+    with _in_parallel(_write_figures, cal, pred, held, out, args.seed):
+        cal.to_netcdf(out / "posterior.nc")
+        cal.summary.to_csv(out / "summary.csv")
+        pred.cycles.to_csv(out / "cycles.csv", index=False)
+        pred.asce.to_csv(out / "asce_7_22.csv", index=False)
+        az = _az()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            loo = az.loo(cal.idata, var_name="force")
+        hold = {}
+        for path, h, hp in held:
             hold[path] = {"nrmse": hp.nrmse, "coverage": hp.coverage}
-            plots.loop_plot(hp, ax=ax)
             hp.cycles.assign(test=h.name).to_csv(out / f"holdout_{h.name}_cycles.csv", index=False)
-        figs["holdout"] = fig
-    for name, fig in figs.items():
-        fig.savefig(out / f"{name}.png", dpi=110)
-        plt.close(fig)
     s = cal.summary
     result = {
         "law": cal.law,
@@ -284,6 +272,55 @@ def run(args: argparse.Namespace) -> int:
         print(f"NRMSE {100 * pred.nrmse:.2f} %, coverage {100 * pred.coverage:.1f} %, "
               f"converged: {cal.converged}; wrote {out}")
     return 0
+
+
+def _write_figures(cal, pred, held, out: Path, seed: int) -> None:
+    """DIR/pair.png, loop.png, energy_per_cycle.png, cumulative_energy.png (and holdout.png)."""
+    import matplotlib.pyplot as plt  # deferred: start-up speed (the CLI's --help needs none)
+
+    figs = {
+        "pair": plots.pair_plot(cal, seed=seed),
+        "loop": plots.loop_plot(pred),
+        "energy_per_cycle": plots.energy_plot(pred),
+        "cumulative_energy": plots.cumulative_plot(pred),
+    }
+    if held:
+        fig, axes = plt.subplots(1, len(held), figsize=(4.2 * len(held), 3.6), squeeze=False,
+                                 constrained_layout=True)
+        for ax, (_, _, hp) in zip(axes[0], held):
+            plots.loop_plot(hp, ax=ax)
+        figs["holdout"] = fig
+    for name, fig in figs.items():
+        fig.savefig(out / f"{name}.png", dpi=110)
+        plt.close(fig)
+
+
+class _in_parallel:
+    """Run ``func(*args)`` in a forked process during the ``with`` block and wait for it at the
+    end (a failure there is a RuntimeError); where processes cannot be forked, or the block
+    raised, it runs in this process instead."""
+
+    def __init__(self, func, *args) -> None:
+        import multiprocessing
+
+        self.func, self.args, self.proc = func, args, None
+        if "fork" in multiprocessing.get_all_start_methods():
+            self.proc = multiprocessing.get_context("fork").Process(target=func, args=args, daemon=True)
+
+    def __enter__(self):
+        if self.proc is not None:
+            self.proc.start()
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if self.proc is None:
+            if exc_type is None:
+                self.func(*self.args)
+            return
+        self.proc.join()
+        if exc_type is None and self.proc.exitcode != 0:
+            raise RuntimeError(f"{self.func.__name__} failed in its worker process "
+                               f"(exit code {self.proc.exitcode}); see the message above")
 
 
 def run_line(d: dict) -> str:
