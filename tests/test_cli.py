@@ -219,7 +219,7 @@ def _fail(path):
 def test_the_calibrate_figures_worker_finishes_before_the_command_and_its_failure_is_not_silent(tmp_path):
     """The figures are drawn in a second process while the command writes its files: the block
     waits for it, and a failure there becomes an error of the command, not a missing file."""
-    from rrfrei.commands.calibrate import _in_parallel
+    from rrfrei.app.commands.calibrate import _in_parallel
 
     with _in_parallel(_touch, tmp_path / "fig.png"):
         pass
