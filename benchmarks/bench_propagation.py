@@ -23,9 +23,7 @@ Run: ``python benchmarks/bench_propagation.py [--quick] [--samples N]``; section
 
 from __future__ import annotations
 
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -37,6 +35,7 @@ sys.path.insert(2, str(ROOT / "tests"))
 import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
 import numpy as np  # noqa: E402
 from _results import report  # noqa: E402
+from bench_time_history import opensees_side as roof_history_side  # noqa: E402
 
 PER_RECORD = 20  # draws per record in the per-core comparison
 TOLERANCE = 1e-8  # relative difference of the peak isolator displacement
@@ -83,26 +82,11 @@ def same_draws(building, n: int):
 
 
 def opensees_side(ops, bld, rec) -> tm.Side:
-    """openseespy: model + recorder (untimed), one ``analyze`` call (timed), wipe + read (untimed)."""
-    from opensees_dynamic import build
-
-    def setup():
-        fd, path = tempfile.mkstemp(suffix=".out")
-        os.close(fd)
-        roof = build(ops, bld, rec.accel, rec.dt)
-        ops.recorder("Node", "-file", path, "-precision", 17, "-node", 2, roof, "-dof", 1, "disp")
-        return path
-
-    def finish(path, status):
-        ops.wipe()  # flushes and closes the recorder
-        try:
-            if status != 0:
-                raise RuntimeError(f"openseespy failed on {rec.name} (status {status})")
-            return float(np.max(np.abs(np.loadtxt(path, ndmin=2)[:, 0])))
-        finally:
-            os.unlink(path)
-
-    return tm.Side("openseespy", lambda _s: ops.analyze(rec.npts - 1, rec.dt), setup, finish)
+    """openseespy as in ``bench_time_history`` (model + recorder untimed, one ``analyze`` timed,
+    wipe + read untimed), reduced to the peak isolator displacement [m]."""
+    side = roof_history_side(ops, bld, rec)
+    return tm.Side(side.label, side.run, side.setup,
+                   lambda path, status: float(np.max(np.abs(side.finish(path, status)))))
 
 
 def main() -> None:
