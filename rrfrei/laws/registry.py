@@ -406,18 +406,16 @@ def _listing_order(spec: LawSpec) -> tuple:
     return (not spec.opensees_element, len(spec.params), spec.name)
 
 
-def names(*, include_linear: bool = True) -> tuple[str, ...]:
+def names() -> tuple[str, ...]:
     """Names of the registered base laws, in a fixed order (independent of import order).
 
     The order: laws that port an OpenSees element first, then the others; within each group
-    the simplest law (fewest parameters) first, then by name.
+    the simplest law (fewest parameters) first, then by name.  :func:`opensees_laws` gives the
+    first group alone.
     """
     _discover()
-    out = [s.name for s in sorted((s for s in _REGISTRY.values() if not s.effects),
-                                  key=_listing_order)]
-    if not include_linear:
-        out = [n for n in out if n != "linear"]
-    return tuple(out)
+    return tuple(s.name for s in sorted((s for s in _REGISTRY.values() if not s.effects),
+                                        key=_listing_order))
 
 
 def opensees_laws() -> tuple[str, ...]:
