@@ -56,7 +56,7 @@ from scipy.special import logsumexp
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
-from rrfrei.gap.catalogue import CATALOGUE, ScreenContext, screen_all
+from rrfrei.gap.catalogue import ScreenContext, catalogue, screen_all
 from rrfrei.gap.model import FitResult, GapModel, IsolatorModel, velocity, white_noise
 from rrfrei.gap.residuals import cycle_levels, energy_error, gap, segment_table, systematic_gap
 from rrfrei.io import ShearTest, read_test
@@ -396,10 +396,11 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
     BudgetExceeded
         the time budget ran out before the baseline fit finished (nothing to diagnose).
     """
-    effects = list(CATALOGUE) if effects is None else list(effects)
+    known = catalogue()
+    effects = list(known) if effects is None else list(effects)
     for e in effects:
-        if e not in CATALOGUE:
-            raise ValueError(f"unknown effect {e!r}; available: {', '.join(CATALOGUE)}")
+        if e not in known:
+            raise ValueError(f"unknown effect {e!r}; available: {', '.join(known)}")
     budget = TimeBudget.of(time_budget, "gap diagnosis")
     ck = _Checkpoint(checkpoint, model, data, seed)
     name = getattr(data, "name", "data")
@@ -432,7 +433,7 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
             except NUMERICAL_ERRORS as exc:
                 notes.append(f"residual segment table skipped: {_failure('segment_table', exc)}")
         ctx = _screen_context(model, data, base)
-        screens = screen_all(ctx) if ctx is not None else {e: float("nan") for e in CATALOGUE}
+        screens = screen_all(ctx) if ctx is not None else {e: float("nan") for e in known}
         bar.update()
         fits: dict[str, FitResult] = {base.name: base}
         starts: list[FitResult] | None = None

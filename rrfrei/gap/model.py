@@ -45,7 +45,7 @@ from scipy.optimize import least_squares
 
 from rrfrei.budget import TimeBudget
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
-from rrfrei.gap.catalogue import CATALOGUE, Scales
+from rrfrei.gap.catalogue import Scales, catalogue
 from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, get
 from rrfrei.laws.specialise import history
@@ -252,7 +252,7 @@ class IsolatorModel(GapModel):
         return cycle_groups(np.asarray(data.disp))
 
     def cannot_judge(self, effect: str, data: ShearTest) -> str | None:
-        if CATALOGUE[effect].needs_time and not data.has_time:
+        if catalogue()[effect].needs_time and not data.has_time:
             return f"test {data.name!r} has no time column: {effect} effects cannot be judged"
         return None
 
@@ -347,7 +347,7 @@ class IsolatorModel(GapModel):
         scale = {n: max(abs(base_vals.get(n, 0.0)), 1e-12) for n in free}
         box: dict[str, tuple[float, float]] = {}
         for eff in spec.effects:
-            info = CATALOGUE[eff]
+            info = catalogue()[eff]
             es = info.scales(sc)
             scale.update({k: v for k, v in es.items() if k in free})
             box.update(info.box(sc))

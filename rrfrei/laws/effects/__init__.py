@@ -5,8 +5,9 @@ effect's parameters, and the base state followed by each effect's state.  Its st
 instance of the template :mod:`rrfrei.laws.effects._augment` bound to the base law's step and to
 each effect's kernel with its parameter and state offsets (:func:`compose`), so it has the plain
 step signature of a law (:mod:`rrfrei.laws.registry`) and runs everywhere a law runs.  The
-effects are the catalogue of unmodelled phenomena of the gap diagnosis (issue 7); their metadata
-for screening and fitting lives in :mod:`rrfrei.gap.catalogue`.
+effects are the catalogue of unmodelled phenomena of the gap diagnosis (issue 7); each carries
+its own screening and fitting hints (:class:`DiagnosisHints`), which :mod:`rrfrei.gap.catalogue`
+reads from this table.
 
 One effect is one module of this package that registers one :class:`EffectSpec`
 (:func:`register_effect`); the modules are found when the package is imported, so adding an
@@ -46,7 +47,8 @@ import numpy as np
 
 from rrfrei.laws.registry import LawSpec, ParamSpec
 
-__all__ = ["EffectSpec", "EFFECTS", "MAX_EFFECTS", "SLIP_NEVER", "compose", "register_effect"]
+__all__ = ["DiagnosisHints", "EffectSpec", "EFFECTS", "MAX_EFFECTS", "SLIP_NEVER", "compose",
+           "register_effect"]
 
 MAX_EFFECTS = 4
 """Most effects one augmented law combines (the positions of the template)."""
@@ -55,12 +57,41 @@ TEMPLATE = "rrfrei.laws.effects._augment"
 
 
 @dataclass(frozen=True)
+class DiagnosisHints:
+    """How the gap diagnosis screens and fits an effect (:mod:`rrfrei.gap`).
+
+    ``s`` below is the test's data scales (``force`` [kN], ``disp`` [m], ``vel`` [m/s],
+    ``energy`` [kN m]: :class:`rrfrei.gap.catalogue.Scales`) and ``ctx`` the baseline residuals
+    and regressors (:class:`rrfrei.gap.catalogue.ScreenContext`).
+
+    Attributes
+    ----------
+    screen : ``screen(ctx) -> float``, a signature score in [0, 1] (NaN: cannot be judged), e.g.
+        the partial correlation of the residual with the effect's tell-tale regressor
+        (:mod:`rrfrei.laws.effects._screens`).
+    starts : ``starts(s) -> [dict]``, a few starting values of the parameters for the refit.
+    scales : ``scales(s) -> dict``, the typical size of each parameter (conditioning).
+    box : ``box(s) -> dict``, the refit's search box inside the physical bounds (default: those).
+    needs_time : the effect can only be judged on a test with real time (velocities).
+    order : position in the diagnosis's catalogue (its tables and tie-breaks).
+    """
+
+    screen: Callable
+    starts: Callable
+    scales: Callable
+    box: Callable = field(default=lambda s: {})
+    needs_time: bool = False
+    order: int = 100
+
+
+@dataclass(frozen=True)
 class EffectSpec:
     """An effect: its parameters, state size, a one-line physical meaning and its kernel.
 
     ``neutral`` holds the parameter values at which the augmented law is the base law exactly.
     Exactly one of ``apply`` (an inner effect: scaling or additive) and ``capacity`` (a series
-    rigid-plastic slider, one state variable) is given; see the package docstring.
+    rigid-plastic slider, one state variable) is given; see the package docstring.  ``hints``
+    makes the effect a candidate of the gap diagnosis (:class:`DiagnosisHints`).
     """
 
     name: str
@@ -70,6 +101,7 @@ class EffectSpec:
     neutral: tuple[float, ...] = ()
     apply: Callable | None = field(default=None, compare=False, repr=False)
     capacity: Callable | None = field(default=None, compare=False, repr=False)
+    hints: DiagnosisHints | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if (self.apply is None) == (self.capacity is None):

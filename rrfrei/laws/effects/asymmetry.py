@@ -5,9 +5,11 @@ in the - direction (e.g. an eccentric vertical load or a rotated specimen).  Neu
 No state.
 """
 
+import numpy as np
 from numba import njit
 
-from rrfrei.laws.effects import EffectSpec, register_effect
+from rrfrei.laws.effects import DiagnosisHints, EffectSpec, register_effect
+from rrfrei.laws.effects._screens import partial
 from rrfrei.laws.registry import ParamSpec, Prior
 
 
@@ -21,8 +23,17 @@ def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
     return g, dg, fa, ka
 
 
+def _screen(ctx) -> float:
+    """r against |F| (a scaling that is even in the force, not odd)."""
+    return partial(ctx.resid, np.abs(ctx.force_pred), [ctx.force_pred])
+
+
+HINTS = DiagnosisHints(_screen, lambda s: [{"asym": 0.05}, {"asym": -0.05}], lambda s: {"asym": 0.1},
+                       order=5)
+
+
 EFFECT = register_effect(EffectSpec(
     "asymmetry",
     (ParamSpec("asym", "-", -0.9, 0.9, "relative excess of the + over the - response",
                Prior("uniform", -0.5, 0.5)),),
-    0, "different response in the + and - directions", (0.0,), apply=apply))
+    0, "different response in the + and - directions", (0.0,), apply=apply, hints=HINTS))

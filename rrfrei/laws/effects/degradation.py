@@ -8,9 +8,11 @@ use dissipated energy as the damage index).  Neutral: ``deg_rate = 0``.
 State (4): ``[u, f_b, E, E_max]`` of the last call.
 """
 
+import numpy as np
 from numba import njit
 
-from rrfrei.laws.effects import EffectSpec, register_effect
+from rrfrei.laws.effects import DiagnosisHints, EffectSpec, register_effect
+from rrfrei.laws.effects._screens import force_sign, partial
 from rrfrei.laws.registry import ParamSpec, Prior
 
 
@@ -31,9 +33,20 @@ def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
     return g, dg, fa, ka
 
 
+def _screen(ctx) -> float:
+    """r sgn(F) against cumulative dissipated energy (the force fades)."""
+    return partial(ctx.resid * force_sign(ctx), ctx.energy, [np.abs(ctx.disp)])
+
+
+HINTS = DiagnosisHints(
+    _screen,
+    lambda s: [{"deg_rate": 0.1 / s.energy}, {"deg_rate": 0.5 / s.energy}],
+    lambda s: {"deg_rate": 1.0 / s.energy}, lambda s: {"deg_rate": (0.0, 100.0 / s.energy)}, order=1)
+
+
 EFFECT = register_effect(EffectSpec(
     "degradation",
     (ParamSpec("deg_rate", "1/kN*m", 0.0, 1e9,
                "fade rate per unit cumulative work: g = 1 / (1 + deg_rate E)",
                Prior("halfnormal", 1.0)),),
-    4, "strength and stiffness fade with cumulative dissipated energy", (0.0,), apply=apply))
+    4, "strength and stiffness fade with cumulative dissipated energy", (0.0,), apply=apply, hints=HINTS))

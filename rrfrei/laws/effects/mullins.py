@@ -7,9 +7,11 @@ Dorfmann & Ogden 2004 pseudo-elasticity in its simplest form).  Neutral: ``m = 0
 State (1): ``[u_max]`` [m].
 """
 
+import numpy as np
 from numba import njit
 
-from rrfrei.laws.effects import EffectSpec, register_effect
+from rrfrei.laws.effects import DiagnosisHints, EffectSpec, register_effect
+from rrfrei.laws.effects._screens import force_sign, partial
 from rrfrei.laws.registry import ParamSpec, Prior
 
 
@@ -28,9 +30,19 @@ def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
     return g, dg, fa, ka
 
 
+def _screen(ctx) -> float:
+    """r sgn(F) on first vs repeated cycles of an amplitude (the first is stiffer)."""
+    return partial(ctx.resid * force_sign(ctx), ctx.first_cycle.astype(float), [np.abs(ctx.disp)])
+
+
+HINTS = DiagnosisHints(_screen, lambda s: [{"mullins": 0.1}, {"mullins": 0.3}],
+                       lambda s: {"mullins": 0.1}, order=2)
+
+
 EFFECT = register_effect(EffectSpec(
     "mullins",
     (ParamSpec("mullins", "-", 0.0, 0.95,
                "softening at zero displacement of reloading below the largest past |u|",
                Prior("uniform", 0.0, 0.9)),),
-    1, "scragging: softer reloading below the previous maximum deformation", (0.0,), apply=apply))
+    1, "scragging: softer reloading below the previous maximum deformation", (0.0,), apply=apply,
+    hints=HINTS))

@@ -5,9 +5,11 @@
 (path independent).  Neutral: ``k_r = 0``.  No state.
 """
 
+import numpy as np
 from numba import njit
 
-from rrfrei.laws.effects import EffectSpec, register_effect
+from rrfrei.laws.effects import DiagnosisHints, EffectSpec, register_effect
+from rrfrei.laws.effects._screens import partial
 from rrfrei.laws.registry import ParamSpec, Prior
 
 
@@ -21,6 +23,21 @@ def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
     return g, dg, fa, ka
 
 
+def _screen(ctx) -> float:
+    """r sgn(u) against |u|^2 (the shape changes with |u|)."""
+    return partial(ctx.resid * np.sign(ctx.disp), ctx.disp**2, [np.abs(ctx.disp)])
+
+
+HINTS = DiagnosisHints(
+    _screen,
+    lambda s: [{"roll_k": -0.3 * s.force / s.disp, "roll_onset": 0.5 * s.disp},
+               {"roll_k": 0.3 * s.force / s.disp, "roll_onset": 0.5 * s.disp},
+               {"roll_k": -0.3 * s.force / s.disp, "roll_onset": 0.25 * s.disp}],
+    lambda s: {"roll_k": s.force / s.disp, "roll_onset": s.disp},
+    lambda s: {"roll_k": (-10 * s.force / s.disp, 10 * s.force / s.disp), "roll_onset": (0.0, s.disp)},
+    order=3)
+
+
 EFFECT = register_effect(EffectSpec(
     "rollover",
     (ParamSpec("roll_k", "kN/m", -1e9, 1e9,
@@ -28,4 +45,4 @@ EFFECT = register_effect(EffectSpec(
                Prior("normal", 0.0, 1.0)),
      ParamSpec("roll_onset", "m", 0.0, 1e3, "displacement at which the tangent changes",
                Prior("halfnormal", 1.0))),
-    0, "amplitude-dependent tangent stiffness at large displacement", (0.0, 0.0), apply=apply))
+    0, "amplitude-dependent tangent stiffness at large displacement", (0.0, 0.0), apply=apply, hints=HINTS))

@@ -8,9 +8,11 @@ the inner law, then bisection: :mod:`rrfrei.laws.effects._augment`).  Dissipativ
 State (1): ``[u_s]`` the slider displacement [m].
 """
 
+import numpy as np
 from numba import njit
 
-from rrfrei.laws.effects import EffectSpec, register_effect
+from rrfrei.laws.effects import DiagnosisHints, EffectSpec, register_effect
+from rrfrei.laws.effects._screens import force_sign, partial
 from rrfrei.laws.registry import ParamSpec, Prior
 
 SLIP_NEVER = 1e12
@@ -23,9 +25,20 @@ def capacity(p, po):
     return p[po]
 
 
+def _screen(ctx) -> float:
+    """r sgn(F) against the excess of |F| over its 80th percentile (a capped force)."""
+    a = np.abs(ctx.force_pred)
+    return partial(ctx.resid * force_sign(ctx), np.maximum(a - np.quantile(a, 0.8), 0.0), [a])
+
+
+HINTS = DiagnosisHints(
+    _screen, lambda s: [{"slip_force": 0.9 * s.force}, {"slip_force": 0.75 * s.force}],
+    lambda s: {"slip_force": s.force}, lambda s: {"slip_force": (0.2 * s.force, 2.0 * s.force)}, order=6)
+
+
 EFFECT = register_effect(EffectSpec(
     "slip",
     (ParamSpec("slip_force", "kN", 0.0, SLIP_NEVER, "friction capacity of the supports mu N",
                Prior("loguniform", 1e-2, 1e3)),),
     1, "sliding of an unbonded bearing once shear exceeds the friction capacity",
-    (SLIP_NEVER,), capacity=capacity))
+    (SLIP_NEVER,), capacity=capacity, hints=HINTS))
