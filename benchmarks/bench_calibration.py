@@ -45,6 +45,7 @@ sys.path.insert(2, str(HERE.parent / "tests"))
 import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
 import numpy as np  # noqa: E402
 from _results import report  # noqa: E402
+from bench_laws import opensees_side as law_force_side  # noqa: E402
 
 import rrfrei  # noqa: E402
 from rrfrei.calibration import ConvergenceWarning, calibrate, setup_problem  # noqa: E402
@@ -77,29 +78,15 @@ print(json.dumps({{"import": t1 - _t0, "first": time.perf_counter() - t1}}))
 
 
 def opensees_side(ops, test) -> tm.Side:
-    """openseespy forward model + Gaussian log-likelihood; only ``analyze`` is timed."""
-    import opensees_harness as h
-
-    def setup():
-        fd, path = tempfile.mkstemp(suffix=".out")
-        os.close(fd)
-        idx, sign = h._build(ops, "bouc_wen", P, test.disp)
-        ops.recorder("Element", "-file", path, "-precision", 17, "-ele", 1, "force")
-        return path, idx, sign
+    """openseespy forward model as in ``bench_laws`` (build + recorder untimed, ``analyze`` timed,
+    wipe + read untimed), reduced to the Gaussian log-likelihood of ``test`` (untimed)."""
+    side = law_force_side(ops, "bouc_wen", P, test.disp)
 
     def finish(state, status):
-        path, idx, sign = state
-        ops.wipe()  # flushes and closes the recorder
-        try:
-            if status != 0:
-                raise RuntimeError(f"openseespy analysis failed (status {status})")
-            f = sign * np.loadtxt(path, ndmin=2)[-test.disp.size:, idx]
-        finally:
-            os.unlink(path)
-        r = test.force - f
-        return -0.5 * np.sum((r / SIGMA) ** 2) - f.size * np.log(SIGMA * np.sqrt(2 * np.pi))
+        r = test.force - side.finish(state, status)
+        return -0.5 * np.sum((r / SIGMA) ** 2) - r.size * np.log(SIGMA * np.sqrt(2 * np.pi))
 
-    return tm.Side("openseespy", lambda _s: ops.analyze(test.disp.size), setup, finish)
+    return tm.Side(side.label, side.run, side.setup, finish)
 
 
 def main() -> None:
