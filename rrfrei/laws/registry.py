@@ -356,23 +356,29 @@ def register(spec: LawSpec) -> LawSpec:
     return spec
 
 
-def _discover() -> None:
-    """Import every module of the :mod:`rrfrei.laws` package once, so each registers its law.
+def import_entries(package: str, path) -> None:
+    """Import every module of ``package`` (its ``__path__`` is ``path``), so each registers its
+    entry: the discovery of the law table and of the effect table (:mod:`rrfrei.laws.effects`).
 
     Modules whose name starts with ``_`` (helpers, templates) and subpackages are skipped.
     """
+    import importlib
+    import pkgutil
+
+    for info in pkgutil.iter_modules(path):
+        if not info.ispkg and not info.name.startswith("_"):
+            importlib.import_module(f"{package}.{info.name}")
+
+
+def _discover() -> None:
+    """Import every module of the :mod:`rrfrei.laws` package once, so each registers its law."""
     global _DISCOVERED
     if _DISCOVERED:
         return
     _DISCOVERED = True
-    import importlib
-    import pkgutil
-
     import rrfrei.laws as package
 
-    for info in pkgutil.iter_modules(package.__path__):
-        if not info.ispkg and not info.name.startswith("_"):
-            importlib.import_module(f"{package.__name__}.{info.name}")
+    import_entries(package.__name__, package.__path__)
 
 
 def get(name: str | LawSpec) -> LawSpec:

@@ -38,14 +38,12 @@ Kernels of an effect module
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from rrfrei.laws.registry import LawSpec, ParamSpec
+from rrfrei.laws.registry import LawSpec, ParamSpec, import_entries
 
 __all__ = ["DiagnosisHints", "EffectSpec", "EFFECTS", "MAX_EFFECTS", "SLIP_NEVER", "compose",
            "register_effect"]
@@ -202,14 +200,6 @@ def compose(base: LawSpec, effect_names: list[str]) -> LawSpec:
     )
 
 
-def _discover() -> None:
-    """Import every module of this package (not those starting with ``_``): each registers one
-    effect."""
-    for info in pkgutil.iter_modules(__path__):
-        if not info.ispkg and not info.name.startswith("_"):
-            importlib.import_module(f"{__name__}.{info.name}")
-
-
-_discover()
+import_entries(__name__, __path__)  # each module of this package registers one effect
 
 from rrfrei.laws.effects.slip import SLIP_NEVER  # noqa: E402  (re-exported)
