@@ -118,9 +118,14 @@ def dissipated_energy(disp, force) -> np.ndarray:
     ellipse it is exact (see the tests).
     """
     u, f = _pair(disp, force)
-    out = np.empty_like(u)
-    out[0] = 0.0
-    np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(u), out=out[1:])
+    return _cumulative_work(u, f[None, :])[0]
+
+
+def _cumulative_work(u: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The trapezoidal cumulative work of :func:`dissipated_energy` for every row of ``F``."""
+    out = np.empty_like(F)
+    out[:, 0] = 0.0
+    np.cumsum(0.5 * (F[:, 1:] + F[:, :-1]) * np.diff(u), axis=1, out=out[:, 1:])
     return out
 
 
@@ -178,8 +183,7 @@ def _cycle_peaks(u: np.ndarray, bounds: np.ndarray) -> tuple[np.ndarray, np.ndar
 def _cycle_arrays(u, F, bounds, ip, im) -> dict[str, np.ndarray]:
     """EDC, k_eff = (F+ - F-) / (d+ - d-) and beta_eff = EDC / (2 pi k_eff d^2), d = (d+ - d-) / 2,
     per row of ``F`` and cycle; NaN where d+ == d- or k_eff d^2 == 0."""
-    energy = np.zeros_like(F)
-    np.cumsum(0.5 * (F[:, 1:] + F[:, :-1]) * np.diff(u), axis=1, out=energy[:, 1:])
+    energy = _cumulative_work(u, F)
     edc = energy[:, bounds[:, 1]] - energy[:, bounds[:, 0]]
     dp, dm = u[ip], u[im]
     span = dp - dm
