@@ -52,7 +52,7 @@ class NoiseModel:
     name: str
 
     def __post_init__(self) -> None:
-        if self.name not in NOISE_MODELS:
+        if not isinstance(self.name, str) or self.name not in NOISE_MODELS:
             raise ValueError(f"noise = {self.name!r}: expected one of {', '.join(NOISE_MODELS)}")
 
     def __str__(self) -> str:
@@ -135,11 +135,7 @@ class NoiseModel:
 
 def noise_model(noise: str | NoiseModel) -> NoiseModel:
     """The :class:`NoiseModel` named ``noise`` (a model is returned as it is)."""
-    if isinstance(noise, NoiseModel):
-        return noise
-    if not isinstance(noise, str) or noise not in NOISE_MODELS:
-        raise ValueError(f"noise = {noise!r}: expected one of {', '.join(NOISE_MODELS)}")
-    return NoiseModel(noise)
+    return noise if isinstance(noise, NoiseModel) else NoiseModel(noise)  # which validates it
 
 
 def pointwise_from_residuals(resid: np.ndarray, sigma: np.ndarray, rho: np.ndarray | None) -> np.ndarray:
