@@ -26,6 +26,7 @@ from rrfrei.gap.design import (
     design_gap,
     design_quantities,
     kn_power,
+    plot_design_gap,
     property_modification,
 )
 from rrfrei.io import ShearTest
@@ -137,6 +138,17 @@ def test_design_gap_is_zero_for_a_perfect_prediction_and_lambda_minus_one_for_a_
     np.testing.assert_allclose(gap["rel_err_after"], expected, atol=1e-12)
     assert gap.loc["k_eff", "unit"] == "kN/m" and gap.loc["qd", "unit"] == "kN"
     assert gap["after"].notna().all()
+
+
+def test_the_design_gap_figure_shows_relative_errors_in_percent():
+    test = rio.load_test("protocol1")
+    gap = design_gap(test, None, 0.9 * test.force, 1.02 * test.force)
+    fig = plot_design_gap(gap, title="protocol1")
+    ax = fig.axes[0]
+    assert "[%]" in ax.get_xlabel()
+    widths = sorted(round(p.get_width(), 9) for p in ax.patches)
+    assert widths[0] == pytest.approx(-10.0) and widths[-1] == pytest.approx(2.0)
+    assert len(ax.get_yticklabels()) == 5  # F(DM) is beyond the test: left out
 
 
 def test_design_gap_names_a_misaligned_prediction():

@@ -81,7 +81,7 @@ from rrfrei.laws import get as get_law
 
 __all__ = ["DM_FACTOR", "LEVEL_TOL", "PROPERTIES", "QUANTITIES", "UNITS", "PropertyModification",
            "bound_params", "design_displacements", "design_gap", "design_quantities", "kn_power",
-           "property_modification"]
+           "plot_design_gap", "property_modification"]
 
 DM_FACTOR = 1.5
 """Default DM / DD (the maximum displacement as 1.5 times the design displacement)."""
@@ -288,6 +288,37 @@ def design_gap(test: ShearTest, measured_force=None, pred_before=None, pred_afte
     for k in ("before", "after"):
         out[f"rel_err_{k}"] = (out[k].to_numpy() - m) / denom
     return out
+
+
+LABELS = {"k_eff": "k_eff", "beta_eff": "beta_eff (EDC)", "edc": "EDC", "qd": "Qd",
+          "f_dd": "F(DD)", "f_dm": "F(DM)"}
+
+
+def plot_design_gap(gap: pd.DataFrame, *, title: str = ""):
+    """Bar chart of :func:`design_gap`: the relative error [%] of each design quantity before
+    and after the effect (a quantity with no value, e.g. F(DM) beyond the test, is left out).
+    Returns a matplotlib ``Figure`` (not managed by pyplot; save it with ``fig.savefig``)."""
+    from matplotlib.figure import Figure  # deferred: matplotlib only when a figure is drawn
+
+    rows = gap[gap["measured"].notna()]
+    fig = Figure(figsize=(6.4, 3.4), layout="constrained")
+    ax = fig.subplots()
+    y = np.arange(len(rows))
+    ax.barh(y + 0.2, 100.0 * rows["rel_err_before"].to_numpy(), height=0.4, color="C3",
+            label="before (baseline law)")
+    if rows["rel_err_after"].notna().any():
+        ax.barh(y - 0.2, 100.0 * rows["rel_err_after"].to_numpy(), height=0.4, color="C2",
+                label="after (with the effect)")
+    ax.set_yticks(y)
+    ax.set_yticklabels([f"{LABELS.get(q, q)} [{rows.loc[q, 'unit']}]" for q in rows.index])
+    ax.invert_yaxis()
+    ax.axvline(0.0, color="k", lw=0.8)
+    ax.set_xlabel("predicted - measured, relative to measured [%]")
+    ax.grid(axis="x", alpha=0.3)
+    fig.legend(fontsize=8, loc="outside upper center", ncols=2)
+    if title:
+        ax.set_title(title)
+    return fig
 
 
 # ----------------------------------------------------------------------------- lambdas
