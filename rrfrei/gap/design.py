@@ -7,7 +7,7 @@ Quantities of a test (:func:`design_quantities`)
 -----------------------------------------------
 Per full cycle (the cycles of :func:`rrfrei.energy.cycle_bounds`, with ``d+``, ``d-`` the
 extreme displacements of the cycle and ``F+``, ``F-`` the forces there), as ASCE 7-22
-section 17.8.5.2 (eqs. 17.8-1, 17.8-2) and isolator test reports state them::
+section 17.8.5 (eqs. 17.8-1 and 17.8-2) and isolator test reports state them::
 
     amplitude d = (d+ - d-) / 2
     k_eff       = (F+ - F-) / (d+ - d-)                     [kN/m]
@@ -41,7 +41,8 @@ variation (``lambda_spec``), eqs. 17.2-1 and 17.2-2::
     lambda_min = (1 - 0.75 (1 - lambda_ae,min)) * lambda_test,min * lambda_spec,min
 
 (the 0.75 is the standard's adjustment for the unlikelihood of all aging and environmental
-maxima occurring together).  Here ``lambda_test`` comes from the spread over cycles and tests,
+maxima occurring together; the same equations are in ASCE 7-16 and in McVitty & Constantinou
+2015, MCEER-15-0005).  Here ``lambda_test`` comes from the spread over cycles and tests,
 as commentary C17.2.8.4 describes it (the ratio of the first-cycle, or extreme, property to the
 three-cycle mean): the nominal value of a property is the mean over the cycles at the reference
 amplitude of every test (the pooled three-cycle mean), and ``lambda_test,max`` /
