@@ -121,6 +121,23 @@ def test_dd_defaults_to_the_largest_level_and_dm_to_one_and_a_half_dd():
     assert 0 < small["f_dd"] < small["f_dm"] == pytest.approx(df.iloc[-1]["f_dd"], rel=1e-12)
 
 
+def test_dd_of_an_off_centre_history_is_its_largest_cycle_amplitude():
+    """Cycles from -10 mm to +30 mm (as earthquake loops often are): DD = 20 mm, the cycles'
+    amplitude, so the test row holds their mean; F(DD) is read on the side that reaches it."""
+    t = np.arange(5 * M + 1) * 2.0 / M
+    u = 0.01 - 0.02 * np.cos(2 * math.pi * t / 2.0)
+    u[0] = 0.0
+    test = ShearTest("offset", t, u, 100.0 * u)
+    df = design_quantities(test)
+    assert df.iloc[-1]["dd"] == pytest.approx(0.02, rel=1e-9)
+    assert df.loc[df["scope"] == "cycle", "at_dd"].all()
+    assert df.iloc[-1]["k_eff"] == pytest.approx(100.0, rel=1e-9)
+    assert df.iloc[-1]["f_dd"] == pytest.approx(2.0, rel=1e-9)
+    wide = design_quantities(test, dd=0.018, tol=0.2)
+    narrow = design_quantities(test, dd=0.018)
+    assert wide["at_dd"].all() and not narrow.loc[narrow["scope"] == "cycle", "at_dd"].any()
+
+
 def test_monotonic_push_has_only_the_test_row_with_the_force_at_dd():
     test = rio.load_test("protocol4")
     df = design_quantities(test)

@@ -19,8 +19,10 @@ section 17.8.5 (eqs. 17.8-1 and 17.8-2) and isolator test reports state them::
 cycle whose positive peak precedes it; the virgin start at rest is not a crossing of a loop.
 
 Per test, the *design displacement* DD and the *maximum displacement* DM: by default
-DD = the largest amplitude level the test reaches in both directions, ``min(max u, -min u)``
-(``max |u|`` for a one-sided test) and **DM = 1.5 DD** (:data:`DM_FACTOR`); both can be given.
+DD = the largest amplitude level of the test, the largest cycle amplitude ``(d+ - d-) / 2``
+(for a test without a full cycle, the largest displacement reached in both directions,
+``min(max u, -min u)``, or ``max |u|`` for a one-sided push), and **DM = 1.5 DD**
+(:data:`DM_FACTOR`); both can be given.
 The test row's k_eff, beta_eff, EDC and Qd are the means over the cycles at the DD level (the
 cycles whose amplitude is within :data:`LEVEL_TOL` of DD: the three-cycle mean of a prototype
 test).  ``f_dd`` and ``f_dm`` are the forces at DD and DM on the envelope of the loops, taken as
@@ -76,7 +78,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from rrfrei.energy import cycle_metrics
+from rrfrei.energy import cycle_bounds, cycle_metrics
 from rrfrei.io import ShearTest
 from rrfrei.laws import get as get_law
 
@@ -130,18 +132,32 @@ def _length(name: str, value) -> float | None:
     return x
 
 
-def design_displacements(disp, *, dd: float | None = None, dm: float | None = None) -> tuple[float, float]:
+def _tolerance(tol) -> float:
+    x = float(tol)
+    if not (math.isfinite(x) and 0.0 <= x < 1.0):
+        raise ValueError(f"tol = {tol!r} is invalid: expected a relative amplitude tolerance in [0, 1)")
+    return x
+
+
+def design_displacements(disp, *, dd: float | None = None, dm: float | None = None,
+                         eps_frac: float = 0.02) -> tuple[float, float]:
     """The design and maximum displacements ``(DD, DM)`` [m] of a test's displacement history.
 
-    Defaults: DD = the largest amplitude reached in both directions, ``min(max u, -min u)``
-    (``max |u|`` when the test goes one way only); DM = :data:`DM_FACTOR` * DD.
+    Defaults: DD = the largest cycle amplitude ``(d+ - d-) / 2`` over the full cycles
+    (:func:`rrfrei.energy.cycle_bounds` with ``eps_frac``); without a full cycle, the largest
+    displacement reached in both directions, ``min(max u, -min u)`` (``max |u|`` when the test
+    goes one way only).  DM = :data:`DM_FACTOR` * DD.
     """
     u = np.asarray(disp, dtype=float)
     dd = _length("dd", dd)
     dm = _length("dm", dm)
     if dd is None:
-        up, down = float(np.max(u)), float(-np.min(u))
-        dd = min(up, down) if min(up, down) > 0.0 else max(up, down)
+        bounds = cycle_bounds(u, eps_frac=eps_frac)
+        if len(bounds):
+            dd = max(0.5 * (float(np.max(u[s:e + 1])) - float(np.min(u[s:e + 1]))) for s, e in bounds)
+        else:
+            up, down = float(np.max(u)), float(-np.min(u))
+            dd = min(up, down) if min(up, down) > 0.0 else max(up, down)
         if not dd > 0.0:
             raise ValueError("the displacement history never leaves zero: DD cannot be set")
     if dm is None:
@@ -204,7 +220,8 @@ def _skeleton_force(u: np.ndarray, f: np.ndarray, d: float) -> float:
 
 # ----------------------------------------------------------------------------- quantities
 def design_quantities(test: ShearTest, force_pred=None, *, dd: float | None = None,
-                      dm: float | None = None, eps_frac: float = 0.02) -> pd.DataFrame:
+                      dm: float | None = None, eps_frac: float = 0.02,
+                      tol: float = LEVEL_TOL) -> pd.DataFrame:
     """k_eff, beta_eff, EDC, Qd per cycle and per test, and the forces at DD and DM.
 
     Parameters
@@ -215,6 +232,8 @@ def design_quantities(test: ShearTest, force_pred=None, *, dd: float | None = No
     dd, dm : design and maximum displacement [m]; default DD = the largest amplitude level of the
         test (reached both ways), DM = 1.5 DD (see the module docstring).
     eps_frac : the cycle detection's noise band (:func:`rrfrei.energy.cycle_bounds`).
+    tol : a cycle is at the DD level when ``|d - DD| <= tol DD`` (default :data:`LEVEL_TOL`;
+        widen it for earthquake tests, whose cycles rarely repeat an amplitude).
 
     Returns
     -------
@@ -228,10 +247,11 @@ def design_quantities(test: ShearTest, force_pred=None, *, dd: float | None = No
         raise ValueError(f"test must be a ShearTest, got {type(test).__name__}")
     u = np.asarray(test.disp, dtype=float)
     f = _history(test, force_pred, "force_pred")
-    dd, dm = design_displacements(u, dd=dd, dm=dm)
+    dd, dm = design_displacements(u, dd=dd, dm=dm, eps_frac=eps_frac)
+    tol = _tolerance(tol)
     cyc = cycle_metrics(u, f, eps_frac=eps_frac)
     amp = 0.5 * (cyc["d_pos"].to_numpy() - cyc["d_neg"].to_numpy())
-    at_dd = np.abs(amp - dd) <= LEVEL_TOL * dd
+    at_dd = np.abs(amp - dd) <= tol * dd
     rows = pd.DataFrame({
         "test": test.name, "scope": "cycle", "cycle": cyc["cycle"].to_numpy(dtype=np.int64),
         "amplitude": amp, "at_dd": at_dd, "k_eff": cyc["k_eff"].to_numpy(),
@@ -425,7 +445,8 @@ class PropertyModification:
 def property_modification(tests: ShearTest | Sequence[ShearTest], forces=None, *,
                           amplitude: float | None = None,
                           lambda_ae: tuple[float, float] = (1.0, 1.0),
-                          lambda_spec: tuple[float, float] = (0.85, 1.15)) -> PropertyModification:
+                          lambda_spec: tuple[float, float] = (0.85, 1.15),
+                          tol: float = LEVEL_TOL) -> PropertyModification:
     """Property modification factors from the spread of k_eff, Qd and EDC over cycles and tests.
 
     Parameters
@@ -433,11 +454,12 @@ def property_modification(tests: ShearTest | Sequence[ShearTest], forces=None, *
     tests : one test or several (e.g. the calibration test and the held-out ones).
     forces : None (the measured forces), or one (n,) force history [kN] per test, e.g. the
         prediction of the law with the named effect along each test's displacements.
-    amplitude : reference amplitude [m] whose cycles are pooled (within :data:`LEVEL_TOL`);
-        default: DD of the first test (its largest amplitude level).  Tests without cycles at
-        that amplitude do not contribute.
+    amplitude : reference amplitude [m] whose cycles are pooled (``|d - amplitude| <= tol
+        amplitude``); default: DD of the first test (its largest amplitude level).  Tests
+        without cycles at that amplitude do not contribute.
     lambda_ae : (min, max) aging and environmental factors; default (1.0, 1.0): no data.
     lambda_spec : (min, max) specification tolerance; default (0.85, 1.15).
+    tol : relative amplitude tolerance of the pool (default :data:`LEVEL_TOL`).
 
     Returns
     -------
@@ -456,7 +478,7 @@ def property_modification(tests: ShearTest | Sequence[ShearTest], forces=None, *
         ref = design_displacements(tests[0].disp)[0]
     pooled, used, seen = [], [], []
     for t, f in zip(tests, forces):
-        df = design_quantities(t, f, dd=ref)
+        df = design_quantities(t, f, dd=ref, tol=tol)
         cyc = df[(df["scope"] == "cycle")]
         seen += [f"{a:.4g}" for a in cyc["amplitude"]]
         cyc = cyc[cyc["at_dd"]]
@@ -465,7 +487,7 @@ def property_modification(tests: ShearTest | Sequence[ShearTest], forces=None, *
             used.append(t.name)
     if not pooled:
         raise ValueError(
-            f"no cycle of the tests has the reference amplitude {ref:.4g} m (+-{LEVEL_TOL:.0%}); "
+            f"no cycle of the tests has the reference amplitude {ref:.4g} m (+-{tol:.0%}); "
             f"cycle amplitudes found [m]: {', '.join(dict.fromkeys(seen)) or 'none (no full cycle)'}"
         )
     pool = pd.concat(pooled, ignore_index=True)
