@@ -30,6 +30,7 @@ from rrfrei.gap.design import (
     property_modification,
 )
 from rrfrei.io import ShearTest
+from rrfrei.laws.effects import EFFECTS
 from structures import time_history_batch
 from structures.consequences import building_consequences, plot_consequences
 
@@ -233,8 +234,11 @@ def test_kn_power_reads_the_registry_units(unit, power):
 
 
 def test_every_registered_parameter_unit_has_a_kn_power_of_minus_one_zero_or_one():
-    for name in laws.names():
-        for p in laws.get(name).params:
+    """Every law and effect of the tables has force-like, inverse or force-free parameters."""
+    specs = [(name, laws.get(name).params) for name in laws.names()]
+    specs += [(name, e.params) for name, e in EFFECTS.items()]
+    for name, params in specs:
+        for p in params:
             assert kn_power(p.unit) in (-1, 0, 1), (name, p.name, p.unit)
 
 
