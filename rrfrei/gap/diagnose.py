@@ -56,6 +56,7 @@ from scipy.special import logsumexp
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
+from rrfrei.gap import decision as dec
 from rrfrei.gap.catalogue import ScreenContext, catalogue, screen_all
 from rrfrei.gap.model import FitResult, GapModel, IsolatorModel, velocity, white_noise
 from rrfrei.gap.residuals import cycle_levels, energy_error, gap, segment_table, systematic_gap
@@ -65,8 +66,9 @@ __all__ = ["EffectScore", "Metrics", "GapReport", "diagnose", "diagnose_gap", "C
 
 CONFOUNDED = ("degradation", "mullins", "rollover", "slip")
 """Effects that a growing-amplitude protocol cannot tell apart on its own."""
-Z = 2.0
-MIN_GAIN = 4.0
+MIN_GAIN = dec.MIN_GAIN
+VERDICTS = ("none", "unexplained", "incomplete")
+"""The verdicts that name no effect (otherwise the verdict is the named effect)."""
 
 
 @dataclass(frozen=True)
@@ -98,8 +100,25 @@ class EffectScore:
     shrink_calibration: float
     shrink_holdout: float
     significant: bool
+    """The effect passes the decision rule (:mod:`rrfrei.gap.decision`) against its reference;
+    whether it is *named* is the report's verdict (a passing effect can be tied or not combined)."""
     params: dict
     note: str = ""
+    blocks_calibration: dec.RankEvidence | None = None
+    """Sign and signed-rank tests of the leave-one-block-out elpd gains on the calibration test."""
+    blocks_holdout: dec.RankEvidence | None = None
+    """The same over the held-out blocks' squared-error reductions (None without held-out data)."""
+    shrink_ci: dec.ShrinkEvidence | None = None
+    """Held-out systematic-gap shrink with its block-bootstrap interval (None without held-out)."""
+    why: str = ""
+    """The decision rule's reading in one line (why it passes or what fails)."""
+
+    def evidence(self) -> dict:
+        """The decision rule's numbers (JSON-ready)."""
+        return {"calibration_blocks": None if self.blocks_calibration is None else self.blocks_calibration.as_dict(),
+                "holdout_blocks": None if self.blocks_holdout is None else self.blocks_holdout.as_dict(),
+                "holdout_shrink": None if self.shrink_ci is None else self.shrink_ci.as_dict(),
+                "passes_rule": self.significant, "why": self.why}
 
     def as_dict(self) -> dict:
         return {
@@ -110,13 +129,20 @@ class EffectScore:
             "shrink_holdout": _num(self.shrink_holdout), "significant": self.significant,
             "calibration": self.calibration.as_dict(),
             "holdout": None if self.holdout is None else self.holdout.as_dict(),
-            "params": self.params, "note": self.note,
+            "params": self.params, "note": self.note, "evidence": self.evidence(),
         }
 
 
 @dataclass(frozen=True)
 class GapReport:
-    """Result of :func:`diagnose`: where the baseline misses, which effect, how far it shrinks."""
+    """Result of :func:`diagnose`: where the baseline misses, which effect, how far it shrinks.
+
+    ``diagnosis`` is the named effect, or ``"none"`` when no effect is named (``"incomplete"``
+    when effects were left unevaluated); ``verdict`` reads the gap: the named effect, ``"none"``
+    (what is left is noise), ``"unexplained"`` (a systematic gap that no catalogued effect
+    closes) or ``"incomplete"``; ``evidence`` holds the numbers behind the verdict (see
+    :func:`diagnose`).
+    """
 
     law: str
     diagnosis: str
@@ -141,6 +167,10 @@ class GapReport:
     """Wall time of the diagnosis [s]."""
     reused: tuple[str, ...] = ()
     """Steps whose fits were read from the checkpoint folder instead of refitted."""
+    verdict: str = ""
+    """An effect name, ``"none"``, ``"unexplained"`` or ``"incomplete"``."""
+    evidence: dict = field(default_factory=dict)
+    """Why the verdict (JSON-ready; keys in :func:`diagnose`)."""
 
     @property
     def complete(self) -> bool:
@@ -152,13 +182,17 @@ class GapReport:
         b, f = self.baseline, self.final
         return {
             "law": self.law,
+            "verdict": self.verdict,
             "diagnosis": self.diagnosis,
             "combination": list(self.combination),
+            "evidence": self.evidence,
             "where": [{"axis": r.axis, "segment": r.segment, "error_share": _num(r.error_share),
                        "coverage": _num(r.coverage)} for r in self.where.head(10).itertuples()],
             "ranking": [{"effect": e.effect, "delta_elpd": _num(e.delta_elpd), "se": _num(e.se),
                          "shrink_calibration": _num(e.shrink_calibration),
-                         "shrink_holdout": _num(e.shrink_holdout)} for e in self.ranking],
+                         "shrink_holdout": _num(e.shrink_holdout), "passes_rule": e.significant,
+                         "named": e.effect in self.combination, **e.evidence()}
+                        for e in self.ranking],
             "gap_before": {"calibration": _num(b[0].gap),
                            "holdout": None if b[1] is None else _num(b[1].gap)},
             "gap_after": {"calibration": _num(f[0].gap),
@@ -207,15 +241,24 @@ def _paired(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return float(d.sum()), float(math.sqrt(d.size * d.var(ddof=1))) if d.size > 1 else float("nan")
 
 
+def _blocks(model: GapModel, data) -> np.ndarray:
+    """Blocks of the decision rule: :func:`rrfrei.gap.decision.blocks` of a displacement history
+    (half-cycles or time windows), else the model's own groups."""
+    if hasattr(data, "disp"):
+        return dec.blocks(np.asarray(data.disp))
+    return np.asarray(model.groups(data), dtype=np.int64)
+
+
 class _Scorer:
     """Caches the per-dataset quantities and scores fits."""
 
-    def __init__(self, model: GapModel, cal, holdout: Sequence) -> None:
+    def __init__(self, model: GapModel, cal, holdout: Sequence, seed: int = 0) -> None:
         self.model = model
         self.cal = cal
         self.holdout = tuple(holdout)
-        self.g_cal = model.groups(cal)
-        self.g_ho = [model.groups(d) for d in self.holdout]
+        self.seed = seed
+        self.g_cal = _blocks(model, cal)
+        self.g_ho = [_blocks(model, d) for d in self.holdout]
         self.noise: dict[int, float] = {}
 
     def set_noise(self, fit: FitResult) -> None:
@@ -242,6 +285,13 @@ class _Scorer:
         return Metrics(gap(y, f), systematic_gap(y, f, sig), float(np.mean(ee_ok)) if ee_ok else float("nan"),
                        float(np.mean(np.concatenate(cov))))
 
+    def residual(self, fit: FitResult, data: Sequence) -> dec.Residual | None:
+        """What is left of ``fit``'s gap on ``data`` (systematic part, excess over noise, rho1)."""
+        if not data:
+            return None
+        return dec.residual_state([self.model.observed(d) for d in data], [fit.predict(d).mean for d in data],
+                                  [self.noise[id(d)] for d in data])
+
     def loco(self, fit: FitResult) -> np.ndarray:
         return _loco(fit.loglik(self.cal), self.g_cal)
 
@@ -250,6 +300,12 @@ class _Scorer:
             return np.zeros(0)
         return np.concatenate([_lppd_groups(fit.loglik(d), g) for d, g in zip(self.holdout, self.g_ho)])
 
+    def parts(self, fit: FitResult, ref: FitResult) -> dec.BlockParts:
+        """Per-block squared errors of ``ref`` and ``fit`` on the held-out tests."""
+        return dec.BlockParts.concat([
+            dec.block_parts(self.model.observed(d), ref.predict(d).mean, fit.predict(d).mean, g,
+                            self.noise[id(d)]) for d, g in zip(self.holdout, self.g_ho)])
+
 
 def _shrink(before: float, after: float) -> float:
     return 1.0 - after / before if before > 0 else float("nan")
@@ -257,21 +313,27 @@ def _shrink(before: float, after: float) -> float:
 
 def _score(sc: _Scorer, effect: str, fit: FitResult, ref: FitResult, screen: float,
            ref_metrics: tuple[Metrics, Metrics | None]) -> EffectScore:
-    de, se = _paired(sc.loco(fit), sc.loco(ref))
+    """Score ``fit`` against ``ref`` and apply the decision rule (:func:`rrfrei.gap.decision.significant`)."""
+    lc, lr = sc.loco(fit), sc.loco(ref)
+    de, se = _paired(lc, lr)
+    cal_ev = dec.rank_evidence(lc - lr)
     mc = sc.metrics(fit, [sc.cal])
     mh = sc.metrics(fit, sc.holdout)
+    ho_ev = sh_ev = None
     if sc.holdout:
         dh, seh = _paired(sc.lppd(fit), sc.lppd(ref))
         sh = _shrink(ref_metrics[1].systematic, mh.systematic)
+        parts = sc.parts(fit, ref)
+        ho_ev = dec.rank_evidence(parts.gains)
+        sh_ev = dec.shrink_ci(parts, seed=sc.seed)
     else:
         dh, seh, sh = float("nan"), float("nan"), float("nan")
-    sig = bool(de > Z * se and de > MIN_GAIN)
-    if sc.holdout:
-        sig = bool(sig and dh > Z * seh and dh > 0 and sh > 0)
+    sig, why = dec.significant(cal_ev, ho_ev, sh_ev) if sc.holdout else dec.significant(cal_ev)
     return EffectScore(effect=effect, law=fit.name, screen=screen, delta_elpd=de, se=se,
                        delta_holdout=dh, se_holdout=seh, calibration=mc, holdout=mh,
                        shrink_calibration=_shrink(ref_metrics[0].systematic, mc.systematic),
-                       shrink_holdout=sh, significant=sig, params=dict(fit.params))
+                       shrink_holdout=sh, significant=sig, params=dict(fit.params),
+                       blocks_calibration=cal_ev, blocks_holdout=ho_ev, shrink_ci=sh_ev, why=why)
 
 
 def _monotone_amplitude(data) -> bool:
@@ -407,7 +469,7 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
     notes: list[str] = []
     skipped: dict[str, str] = {}
     untried: dict[str, str] = {}
-    sc = _Scorer(model, data, holdout)
+    sc = _Scorer(model, data, holdout, seed)
     bar = progress_bar(1 + len(effects), f"gap {model.name}", enabled=progress, unit="step")
     with bar:
         bar.set_postfix_str("baseline")
@@ -481,24 +543,25 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
         ranking = tuple(sorted(scores, key=lambda s: -key(s) if math.isfinite(key(s)) else math.inf))
         sig = [s for s in ranking if s.significant]
         diagnosis = "none"
+        tied: list[str] = []
         if sig:
             diagnosis = sig[0].effect
             if not sc.holdout and _monotone_amplitude(data):
                 win = fits[sig[0].law]
-                tied = []
                 for other in sig[1:]:
                     if other.effect in CONFOUNDED or diagnosis in CONFOUNDED:
-                        d, s = _paired(sc.loco(win), sc.loco(fits[other.law]))
-                        if not d > Z * s:
+                        if not dec.rank_evidence(sc.loco(win) - sc.loco(fits[other.law])).passes():
                             tied.append(other.effect)
                 if tied:
                     notes.append(
                         f"the calibration protocol's amplitude only grows, so {diagnosis} cannot be told "
                         f"apart from {', '.join(tied)} on it alone: give held-out tests (--holdout)")
+                    tied.insert(0, diagnosis)
                     diagnosis = "none"
         combination: list[str] = [] if diagnosis == "none" else [diagnosis]
         steps: list[EffectScore] = []
         final = bm
+        current = base
         stopped = False  # the budget cut the combination search short
         if combination:
             first = next(s for s in ranking if s.effect == diagnosis)
@@ -568,11 +631,74 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
                      f"({', '.join(ck.reused)})")
     if ck.error:
         notes.append(ck.error)
+    try:
+        verdict, evidence = _verdict(sc, diagnosis, combination, base, current, ranking, steps, where,
+                                     tied, missing)
+    except NUMERICAL_ERRORS as exc:  # the verdict's numbers come from fits already scored
+        verdict, evidence = diagnosis, {"error": _failure("verdict", exc)}
     return GapReport(law=model.name, diagnosis=diagnosis, combination=tuple(combination), where=where,
                      screens=screens, ranking=ranking, steps=tuple(steps), baseline=bm, final=final,
                      notes=tuple(notes), fits=fits, calibration_data=data, holdout_data=tuple(holdout),
                      skipped=skipped, not_evaluated=untried, budget_message=budget_message,
-                     elapsed=budget.elapsed, reused=tuple(ck.reused))
+                     elapsed=budget.elapsed, reused=tuple(ck.reused), verdict=verdict, evidence=evidence)
+
+
+def _residuals(sc: _Scorer, fit: FitResult) -> dict:
+    out = {"calibration": sc.residual(fit, [sc.cal])}
+    if sc.holdout:
+        out["holdout"] = sc.residual(fit, sc.holdout)
+    return out
+
+
+def _verdict(sc: _Scorer, diagnosis: str, combination: list[str], base: FitResult, final: FitResult,
+             ranking: tuple[EffectScore, ...], steps: list[EffectScore], where: pd.DataFrame,
+             tied: list[str], missing: dict[str, str]) -> tuple[str, dict]:
+    """The verdict and its evidence (see :func:`diagnose`)."""
+    rule = ("an effect is named when its leave-one-block-out gains on the calibration test total > "
+            f"{dec.MIN_GAIN:g} nats and pass a sign or Wilcoxon signed-rank test over blocks at "
+            f"p < {dec.ALPHA / 2:g}" + (f", and on the held-out tests its per-block squared-error "
+                                         f"reductions pass the same test and the block-bootstrap "
+                                         f"{dec.LEVEL:.0%} interval of the held-out systematic-gap "
+                                         f"shrink lies above {dec.MIN_SHRINK:.0%}" if sc.holdout else "")
+            + f"; what is left is noise when its MSE / sigma^2 - 1 <= {dec.EXCESS:g} or its "
+            f"systematic NRMSE <= {dec.SYS_FLOOR:.0%}")
+    before = {k: v.as_dict() for k, v in _residuals(sc, base).items()}
+    ev: dict = {"rule": rule, "baseline": before, "tied": list(tied)}
+    scored = [s for s in ranking if math.isfinite(s.shrink_holdout if sc.holdout else s.shrink_calibration)]
+    key = (lambda s: s.shrink_holdout) if sc.holdout else (lambda s: s.shrink_calibration)
+    closest = max(scored, key=key) if scored else None
+    if closest is not None:
+        ev["closest"] = {"effect": closest.effect, "shrink": _num(key(closest)),
+                         "shrink_on": "holdout" if sc.holdout else "calibration", **closest.evidence()}
+    if diagnosis not in VERDICTS:
+        left = _residuals(sc, final)
+        ev["named"] = {"effect": diagnosis, "combination": list(combination),
+                       "steps": [{"effect": s.effect, **s.evidence()} for s in steps]}
+        ev["left"] = {k: v.as_dict() for k, v in left.items()}
+        ev["left_is_noise"] = all(v.noise_only for v in left.values())
+        return diagnosis, ev
+    if diagnosis == "incomplete":
+        ev["not_evaluated"] = dict(missing)
+        return "incomplete", ev
+    res = _residuals(sc, base)
+    noisy = [k for k, v in res.items() if not v.noise_only]
+    ev["systematic_on"] = noisy
+    if not noisy:
+        ev["reasons"] = [
+            f"{k}: systematic gap {_pct(v.systematic)} of the RMS force, MSE / sigma^2 - 1 = {v.excess:.2f} "
+            f"(noise: <= {dec.EXCESS:g} or <= {dec.SYS_FLOOR:.0%}); lag-1 autocorrelation of the residuals "
+            f"{v.rho1:.2f} ({'white' if v.white else 'not white'} at 2 / sqrt(n))" for k, v in res.items()]
+        if closest is not None:
+            ev["reasons"].append(f"no effect passes the block rule; closest {closest.effect}: {closest.why}")
+        return "none", ev
+    ev["where"] = [{"axis": r.axis, "segment": r.segment, "error_share": _num(r.error_share),
+                    "rms_over_noise": _num(r.rms_over_noise)} for r in where.head(3).itertuples()]
+    ev["size"] = {k: _num(v.systematic) for k, v in res.items()}
+    return "unexplained", ev
+
+
+def _pct(x: float) -> str:
+    return "n/a" if not math.isfinite(x) else f"{100 * x:.1f} %"
 
 
 def _as_test(t, what: str) -> ShearTest:
