@@ -166,8 +166,9 @@ def block_parts(y, f_ref, f_eff, labels, sigma: float) -> BlockParts:
         raise ValueError(f"sigma must be finite and >= 0, got {sigma!r}")
     B = int(lab.max()) + 1 if lab.size else 0
     n = np.bincount(lab, minlength=B).astype(float)
-    return BlockParts(n=n, sse_ref=np.bincount(lab, (y - a) ** 2, B), sse_eff=np.bincount(lab, (y - b) ** 2, B),
-                      yy=np.bincount(lab, y**2, B), noise=n * sigma**2, stratum=np.zeros(B, dtype=np.int64))
+    return BlockParts(n=n, sse_ref=np.bincount(lab, (y - a) ** 2, B),
+                      sse_eff=np.bincount(lab, (y - b) ** 2, B), yy=np.bincount(lab, y**2, B),
+                      noise=n * sigma**2, stratum=np.zeros(B, dtype=np.int64))
 
 
 # --- rank tests ------------------------------------------------------------------------------
@@ -305,7 +306,7 @@ def significant(calibration: RankEvidence, holdout: RankEvidence | None = None,
             lo = float("nan") if shrink is None else shrink.lower
             why.append(f"held-out shrink lower bound {lo:.0%} <= {min_shrink:.0%}")
     if ok:
-        txt = (f"calibration blocks p = {calibration.p:.2g} ({calibration.positive}/{calibration.blocks} gain)")
+        txt = f"calibration blocks p = {calibration.p:.2g} ({calibration.positive}/{calibration.blocks} gain)"
         if holdout is not None and shrink is not None:
             txt += (f"; held-out blocks p = {holdout.p:.2g} ({holdout.positive}/{holdout.blocks} gain), "
                     f"shrink {shrink.shrink:.0%} [{shrink.lower:.0%}, {shrink.upper:.0%}]")

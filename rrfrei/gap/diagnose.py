@@ -115,9 +115,11 @@ class EffectScore:
 
     def evidence(self) -> dict:
         """The decision rule's numbers (JSON-ready)."""
-        return {"calibration_blocks": None if self.blocks_calibration is None else self.blocks_calibration.as_dict(),
-                "holdout_blocks": None if self.blocks_holdout is None else self.blocks_holdout.as_dict(),
-                "holdout_shrink": None if self.shrink_ci is None else self.shrink_ci.as_dict(),
+        def d(x):
+            return None if x is None else x.as_dict()
+
+        return {"calibration_blocks": d(self.blocks_calibration), "holdout_blocks": d(self.blocks_holdout),
+                "holdout_shrink": d(self.shrink_ci),
                 "passes_rule": self.significant, "why": self.why}
 
     def as_dict(self) -> dict:
@@ -257,8 +259,10 @@ class _Scorer:
         self.cal = cal
         self.holdout = tuple(holdout)
         self.seed = seed
-        self.g_cal = _blocks(model, cal)
+        self.g_cal = _blocks(model, cal)  # blocks of the decision rule
         self.g_ho = [_blocks(model, d) for d in self.holdout]
+        self.c_cal = model.groups(cal)  # the model's groups (cycles): delta elpd and its paired se
+        self.c_ho = [model.groups(d) for d in self.holdout]
         self.noise: dict[int, float] = {}
 
     def set_noise(self, fit: FitResult) -> None:
@@ -292,13 +296,15 @@ class _Scorer:
         return dec.residual_state([self.model.observed(d) for d in data], [fit.predict(d).mean for d in data],
                                   [self.noise[id(d)] for d in data])
 
-    def loco(self, fit: FitResult) -> np.ndarray:
-        return _loco(fit.loglik(self.cal), self.g_cal)
+    def loco(self, fit: FitResult, blocks: bool = True) -> np.ndarray:
+        """Leave-one-out elpd per block (``blocks``) or per model group (cycle)."""
+        return _loco(fit.loglik(self.cal), self.g_cal if blocks else self.c_cal)
 
     def lppd(self, fit: FitResult) -> np.ndarray:
+        """Held-out log predictive density per model group (cycle)."""
         if not self.holdout:
             return np.zeros(0)
-        return np.concatenate([_lppd_groups(fit.loglik(d), g) for d, g in zip(self.holdout, self.g_ho)])
+        return np.concatenate([_lppd_groups(fit.loglik(d), g) for d, g in zip(self.holdout, self.c_ho)])
 
     def parts(self, fit: FitResult, ref: FitResult) -> dec.BlockParts:
         """Per-block squared errors of ``ref`` and ``fit`` on the held-out tests."""
@@ -314,9 +320,8 @@ def _shrink(before: float, after: float) -> float:
 def _score(sc: _Scorer, effect: str, fit: FitResult, ref: FitResult, screen: float,
            ref_metrics: tuple[Metrics, Metrics | None]) -> EffectScore:
     """Score ``fit`` against ``ref`` and apply the decision rule (:func:`rrfrei.gap.decision.significant`)."""
-    lc, lr = sc.loco(fit), sc.loco(ref)
-    de, se = _paired(lc, lr)
-    cal_ev = dec.rank_evidence(lc - lr)
+    de, se = _paired(sc.loco(fit, blocks=False), sc.loco(ref, blocks=False))
+    cal_ev = dec.rank_evidence(sc.loco(fit) - sc.loco(ref))
     mc = sc.metrics(fit, [sc.cal])
     mh = sc.metrics(fit, sc.holdout)
     ho_ev = sh_ev = None
