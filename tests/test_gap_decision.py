@@ -224,3 +224,26 @@ def test_residual_state_calls_white_noise_noise_and_a_smooth_misfit_systematic()
     assert white.noise_only and white.white
     smooth = dec.residual_state([y + e + 0.1 * y], [y], [0.05])
     assert not smooth.noise_only and not smooth.white and smooth.systematic > 0.05
+
+
+# --- one baseline ------------------------------------------------------------------------------
+def test_the_baseline_optimum_is_at_least_as_good_as_calibrates_optimum_on_the_same_test():
+    """``rrfrei.calibrate``'s optimum is :func:`find_map` on :func:`setup_problem` with its default
+    evaluations; the diagnosis's baseline is polished from it (and another start), never worse."""
+    from rrfrei.calibration import setup_problem
+    from rrfrei.calibration.sampler import find_map
+    from rrfrei.gap.model import IsolatorModel, _simulate
+    from rrfrei.gap.residuals import gap
+    from rrfrei.io import load_test
+    from rrfrei.laws import get
+
+    test = load_test("protocol1")
+    spec = get("bouc_wen")
+    prob = setup_problem(test, spec)
+    theta, _ = find_map(prob, 0)
+    p = dict(prob.fixed)
+    p.update({n: float(x) for n, x in zip(prob.free, theta[: len(prob.free)])})
+    f_cal = _simulate(spec, np.array([p[n] for n in spec.param_names]), test)[1]
+    fit = IsolatorModel(spec, draws=10).fit(test, seed=0)
+    f_base = _simulate(spec, fit.p_opt, test)[1]
+    assert gap(test.force, f_base) <= gap(test.force, f_cal) * (1 + 1e-3)

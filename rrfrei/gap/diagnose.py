@@ -4,24 +4,39 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
 
 1. fit the baseline on the calibration data; residual segment table ("where") and the signature
    screen of every catalogue effect;
-2. refit every effect's augmented model (optimum, then the Laplace posterior) and score its gain
-   in expected predictive accuracy: the leave-one-cycle-out elpd difference on the calibration
-   data (PSIS on cycle-summed log-likelihoods, Vehtari, Gelman & Gabry 2017, ``arviz.psislw``;
-   paired standard error over cycles) and, with held-out data, the difference of held-out log
-   predictive density summed per held-out cycle, with its paired standard error;
-3. an effect is *significant* when its calibration gain exceeds 2 se (and 4 nats) and, with
-   held-out data, its held-out gain also exceeds 2 se and its held-out systematic gap shrinks.
-   The diagnosis is the significant effect with the largest held-out gain (calibration gain
-   without held-out data), or ``none``;
+2. refit every effect's augmented model (optimum, then the Laplace posterior) and score it over
+   *blocks* (half-cycles, or time windows without two full cycles,
+   :func:`rrfrei.gap.decision.blocks`): the leave-one-block-out elpd difference on the
+   calibration data (PSIS on block-summed log-likelihoods, Vehtari, Gelman & Gabry 2017,
+   ``arviz.psislw``) and, with held-out data, the reduction of each held-out block's squared
+   error and the pooled held-out systematic-gap shrink with its block-bootstrap interval.  The
+   old summaries (elpd and held-out lpd differences with their paired se over cycles) are kept
+   for display;
+3. an effect is *significant* by the block rule of :mod:`rrfrei.gap.decision`: sign or
+   Wilcoxon signed-rank test over the calibration blocks (and > 4 nats in total) and, with
+   held-out data, over the held-out blocks, with the bootstrap lower bound of the held-out shrink
+   above 10 % (an effect that wins on the calibration test and does not close the held-out gap is
+   rejected).  Rank tests do not lose power when a few blocks gain enormously, the failure of the
+   former "gain > 2 paired se" rule (issue 12).  The diagnosis is the significant effect with the
+   largest held-out lpd gain (calibration gain without held-out data), or ``none``;
 4. confounding guard: a protocol whose amplitude only grows moves amplitude, dissipated energy
    and time together, so on the calibration test alone degradation, scragging, rollover and slip
    can stand in for one another.  Every refit starts from the baseline optimum and from the
    baseline fitted to the first half of the test only (before late effects set in).
    Without held-out data on such a protocol the winner must also
-   beat every other significant effect in a paired leave-one-cycle-out comparison by 2 se; else
-   the diagnosis is ``none`` and the report names the tied effects;
+   beat every other significant effect in a leave-one-block-out comparison by the same block
+   test; else the diagnosis is ``none`` and the report names the tied effects;
 5. greedy combination: add the best further effect (refit from the current combination) while
-   it stays significant against the current combination by the same rule.
+   it stays significant against the current combination by the same rule;
+6. verdict (``GapReport.verdict``, ``GapReport.evidence``): the named effect (evidence: its block
+   tests, shrink interval, and what is left after it); else ``"none"`` when what is left of the
+   baseline is noise on the calibration and the held-out data (systematic part within the noise or
+   below 1 % NRMSE, :class:`rrfrei.gap.decision.Residual`; evidence: the reasons, with the
+   residuals' lag-1 autocorrelation); else ``"unexplained"`` (evidence: the top three segments of
+   ``where``, the systematic gap's size, the closest candidate with its shrink and why it was
+   rejected, tied effects); ``"incomplete"`` when effects were not evaluated.  Evidence keys:
+   ``rule``, ``baseline``, ``tied``, ``closest``, and ``named``/``left``/``left_is_noise``,
+   ``reasons``/``systematic_on``, ``where``/``size``, ``not_evaluated`` by verdict.
 
 Robustness, time and restarts (issue 16.4):
 
