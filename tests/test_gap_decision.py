@@ -247,3 +247,22 @@ def test_the_baseline_optimum_is_at_least_as_good_as_calibrates_optimum_on_the_s
     fit = IsolatorModel(spec, draws=10).fit(test, seed=0)
     f_base = _simulate(spec, fit.p_opt, test)[1]
     assert gap(test.force, f_base) <= gap(test.force, f_cal) * (1 + 1e-3)
+
+
+def test_the_diagnosis_runs_openblas_on_one_thread_and_restores_it_after():
+    import ctypes
+
+    from rrfrei.gap.diagnose import _BLAS_SYMBOLS, one_blas_thread
+
+    getters = []
+    with open("/proc/self/maps") as fh:
+        paths = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and "/" in ln})
+    for path in paths:
+        lib = ctypes.CDLL(path)
+        getters += [getattr(lib, g) for s, g in _BLAS_SYMBOLS if hasattr(lib, s) and hasattr(lib, g)][:1]
+    if not getters:
+        pytest.skip("no OpenBLAS with set/get_num_threads loaded")
+    before = [g() for g in getters]
+    with one_blas_thread():
+        assert [g() for g in getters] == [1] * len(getters)
+    assert [g() for g in getters] == before
