@@ -135,7 +135,7 @@ def test_cli_gap_prints_the_json_summary_and_writes_the_report(tmp_path, capsys)
     assert set(out["where"][0]) == {"axis", "segment", "error_share", "coverage"}
     assert set(out["ranking"][0]) == {"effect", "delta_elpd", "se", "shrink_calibration", "shrink_holdout",
                                       "passes_rule", "named", "why", "calibration_blocks", "holdout_blocks",
-                                      "holdout_shrink"}
+                                      "shrink", "shrink_on"}
     assert out["gap_after"]["holdout"] < out["gap_before"]["holdout"]
     for name in ("report.md", "gap_map.png", "loops.png", "ranking.png"):
         assert (tmp_path / "out" / name).stat().st_size > 0

@@ -266,3 +266,16 @@ def test_the_diagnosis_runs_openblas_on_one_thread_and_restores_it_after():
     with one_blas_thread():
         assert [g() for g in getters] == [1] * len(getters)
     assert [g() for g in getters] == before
+
+
+@pytest.mark.parametrize("asym,verdict", [(0.3, "asymmetry"), (0.0, "none")])
+def test_without_held_out_tests_the_calibration_blocks_decide_with_their_own_shrink_bound(asym, verdict):
+    cal, _ = _tests(asym)
+    rep = diagnose(LinearModel(), cal, [], effects=EFFECTS)
+    assert rep.verdict == verdict
+    for s in rep.ranking:
+        assert s.blocks_holdout is None and s.shrink_ci is not None
+        assert s.significant == (s.effect == verdict)
+        assert s.significant == (s.shrink_ci.lower > dec.MIN_SHRINK and s.blocks_calibration.passes()
+                                 and s.blocks_calibration.total > dec.MIN_GAIN)
+    assert rep.as_dict()["ranking"][0]["shrink_on"] == "calibration"

@@ -16,7 +16,8 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    Wilcoxon signed-rank test over the calibration blocks (and > 4 nats in total) and, with
    held-out data, over the held-out blocks, with the bootstrap lower bound of the held-out shrink
    above 10 % (an effect that wins on the calibration test and does not close the held-out gap is
-   rejected).  Rank tests do not lose power when a few blocks gain enormously, the failure of the
+   rejected); without held-out data the bootstrap bound of the calibration test's own shrink
+   must lie above 10 %.  Rank tests do not lose power when a few blocks gain enormously, the failure of the
    former "gain > 2 paired se" rule (issue 12).  The diagnosis is the significant effect with the
    largest held-out lpd gain (calibration gain without held-out data), or ``none``;
 4. confounding guard: a protocol whose amplitude only grows moves amplitude, dissipated energy
@@ -125,7 +126,8 @@ class EffectScore:
     blocks_holdout: dec.RankEvidence | None = None
     """The same over the held-out blocks' squared-error reductions (None without held-out data)."""
     shrink_ci: dec.ShrinkEvidence | None = None
-    """Held-out systematic-gap shrink with its block-bootstrap interval (None without held-out)."""
+    """Systematic-gap shrink with its block-bootstrap interval: pooled over the held-out tests, or
+    on the calibration test when there are none."""
     why: str = ""
     """The decision rule's reading in one line (why it passes or what fails)."""
 
@@ -135,7 +137,8 @@ class EffectScore:
             return None if x is None else x.as_dict()
 
         return {"calibration_blocks": d(self.blocks_calibration), "holdout_blocks": d(self.blocks_holdout),
-                "holdout_shrink": d(self.shrink_ci),
+                "shrink": d(self.shrink_ci),
+                "shrink_on": "holdout" if self.blocks_holdout is not None else "calibration",
                 "passes_rule": self.significant, "why": self.why}
 
     def as_dict(self) -> dict:
@@ -322,11 +325,14 @@ class _Scorer:
             return np.zeros(0)
         return np.concatenate([_lppd_groups(fit.loglik(d), g) for d, g in zip(self.holdout, self.c_ho)])
 
-    def parts(self, fit: FitResult, ref: FitResult) -> dec.BlockParts:
-        """Per-block squared errors of ``ref`` and ``fit`` on the held-out tests."""
+    def parts(self, fit: FitResult, ref: FitResult, data: Sequence | None = None,
+              blocks: Sequence | None = None) -> dec.BlockParts:
+        """Per-block squared errors of ``ref`` and ``fit`` on ``data`` (default: the held-out tests)."""
+        data = self.holdout if data is None else data
+        blocks = self.g_ho if blocks is None else blocks
         return dec.BlockParts.concat([
             dec.block_parts(self.model.observed(d), ref.predict(d).mean, fit.predict(d).mean, g,
-                            self.noise[id(d)]) for d, g in zip(self.holdout, self.g_ho)])
+                            self.noise[id(d)]) for d, g in zip(data, blocks)])
 
 
 def _shrink(before: float, after: float) -> float:
@@ -349,7 +355,8 @@ def _score(sc: _Scorer, effect: str, fit: FitResult, ref: FitResult, screen: flo
         sh_ev = dec.shrink_ci(parts, seed=sc.seed)
     else:
         dh, seh, sh = float("nan"), float("nan"), float("nan")
-    sig, why = dec.significant(cal_ev, ho_ev, sh_ev) if sc.holdout else dec.significant(cal_ev)
+        sh_ev = dec.shrink_ci(sc.parts(fit, ref, [sc.cal], [sc.g_cal]), seed=sc.seed)
+    sig, why = dec.significant(cal_ev, ho_ev, sh_ev)
     return EffectScore(effect=effect, law=fit.name, screen=screen, delta_elpd=de, se=se,
                        delta_holdout=dh, se_holdout=seh, calibration=mc, holdout=mh,
                        shrink_calibration=_shrink(ref_metrics[0].systematic, mc.systematic),
@@ -739,7 +746,10 @@ def _verdict(sc: _Scorer, diagnosis: str, combination: list[str], base: FitResul
             f"p < {dec.ALPHA / 2:g}" + (f", and on the held-out tests its per-block squared-error "
                                          f"reductions pass the same test and the block-bootstrap "
                                          f"{dec.LEVEL:.0%} interval of the held-out systematic-gap "
-                                         f"shrink lies above {dec.MIN_SHRINK:.0%}" if sc.holdout else "")
+                                         f"shrink lies above {dec.MIN_SHRINK:.0%}" if sc.holdout else
+                                         f", and the block-bootstrap {dec.LEVEL:.0%} interval of the "
+                                         f"calibration test's systematic-gap shrink lies above "
+                                         f"{dec.MIN_SHRINK:.0%}")
             + f"; what is left is noise when its MSE / sigma^2 - 1 <= {dec.EXCESS:g} or its "
             f"systematic NRMSE <= {dec.SYS_FLOOR:.0%}")
     before = {k: v.as_dict() for k, v in _residuals(sc, base).items()}
@@ -748,8 +758,9 @@ def _verdict(sc: _Scorer, diagnosis: str, combination: list[str], base: FitResul
     key = (lambda s: s.shrink_holdout) if sc.holdout else (lambda s: s.shrink_calibration)
     closest = max(scored, key=key) if scored else None
     if closest is not None:
-        ev["closest"] = {"effect": closest.effect, "shrink": _num(key(closest)),
-                         "shrink_on": "holdout" if sc.holdout else "calibration", **closest.evidence()}
+        ce = closest.evidence()
+        ev["closest"] = {"effect": closest.effect, **ce, "shrink": _num(key(closest)),
+                         "shrink_ci": ce["shrink"]}
     if diagnosis not in VERDICTS:
         left = _residuals(sc, final)
         ev["named"] = {"effect": diagnosis, "combination": list(combination),

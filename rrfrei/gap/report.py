@@ -208,7 +208,7 @@ def write_report(rep: GapReport, out: str | Path, *, title: str | None = None) -
               "the blocks where the effect lowers the leave-one-block-out loss (calibration) or the squared "
               "error (held out); p is the smaller of the sign and Wilcoxon signed-rank p-values.", "",
               "| effect | screen | delta elpd (LOCO) | calibration blocks gaining (p) "
-              "| held-out blocks gaining (p) | shrink cal. | shrink held out [90 % CI] "
+              "| held-out blocks gaining (p) | shrink cal. | shrink held out [90 % CI on the one decided on] "
               "| passes the rule | named |",
               "|---|---|---|---|---|---|---|---|---|"]
     for s in rep.ranking:
@@ -217,8 +217,10 @@ def write_report(rep: GapReport, out: str | Path, *, title: str | None = None) -
             f"| {s.effect} | {_f(s.screen, 2)} | {_f(s.delta_elpd)} +- {_f(s.se)} | "
             + (f"{bc.positive}/{bc.blocks} ({bc.p:.2g})" if bc is not None else "n/a") + " | "
             + (f"{bh.positive}/{bh.blocks} ({bh.p:.2g})" if bh is not None else "n/a") + " | "
-            + f"{_pct(s.shrink_calibration)} | {_pct(s.shrink_holdout)}"
-            + (f" [{_pct(ci.lower)}, {_pct(ci.upper)}]" if ci is not None else "") + " | "
+            + f"{_pct(s.shrink_calibration)}"
+            + (f" [{_pct(ci.lower)}, {_pct(ci.upper)}]" if ci is not None and bh is None else "")
+            + f" | {_pct(s.shrink_holdout)}"
+            + (f" [{_pct(ci.lower)}, {_pct(ci.upper)}]" if ci is not None and bh is not None else "") + " | "
             + f"{'yes' if s.significant else 'no'} | {_named(rep, s)} |")
     lines += ["", "Why each effect passes or not:", ""]
     lines += [f"* `{s.effect}`: {s.why}" for s in rep.ranking]
