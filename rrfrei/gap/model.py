@@ -261,7 +261,8 @@ class IsolatorModel(GapModel):
     def _free(self, data: ShearTest) -> tuple[tuple[str, ...], dict[str, float]]:
         return self.spec.resolve_fixed(data.geometry, self.fixed, source=f"test {data.name!r}")
 
-    def _base_start(self, data: ShearTest, free, fixed, seed: int) -> list[dict[str, float]]:
+    def _base_start(self, data: ShearTest, free, fixed, seed: int,
+                    budget: TimeBudget | None = None) -> list[dict[str, float]]:
         """Starts of the baseline least squares: the optimum of :func:`rrfrei.calibrate`'s own
         global search (same problem, seed and evaluations, so the polished baseline is never worse
         than calibrate's optimum) and a second search from another seed (another basin)."""
@@ -273,7 +274,7 @@ class IsolatorModel(GapModel):
         prob = setup_problem(data, base, fixed=bfix)
         out = []
         for s, evals in ((seed, None), (seed + 1, GLOBAL_EVALS * max(len(prob.free), 1))):
-            theta, _ = find_map(prob, s, max_evals=evals)
+            theta, _ = find_map(prob, s, max_evals=evals, budget=budget)
             vals = dict(bfix)
             vals.update({n: float(x) for n, x in zip(prob.free, theta[: len(prob.free)])})
             out.append(vals)
@@ -345,7 +346,7 @@ class IsolatorModel(GapModel):
         if start is not None:
             base_vals = dict(start.params)
         elif not spec.effects:
-            base_vals, *more = self._base_start(data, free, fixed, seed)
+            base_vals, *more = self._base_start(data, free, fixed, seed, budget)
             extra_bases += more
         else:
             base_vals = {}
