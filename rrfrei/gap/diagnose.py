@@ -528,7 +528,8 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
     GapReport
         ``complete`` is False when an effect was skipped (numerical failure) or not evaluated
         (time budget); if no evaluated effect is significant the diagnosis is then
-        ``"incomplete"``, never ``"none"``.
+        ``"incomplete"``, never ``"none"``.  ``verdict`` and ``evidence``: step 6 of the module
+        docstring.
 
     Raises
     ------
