@@ -128,10 +128,14 @@ def test_cli_gap_prints_the_json_summary_and_writes_the_report(tmp_path, capsys)
                  "rate", "--out", str(tmp_path / "out"), "--json"])
     assert code == 0
     out = json.loads(capsys.readouterr().out)
-    assert set(out) >= {"law", "diagnosis", "combination", "where", "ranking", "gap_before", "gap_after"}
+    assert set(out) >= {"law", "verdict", "evidence", "diagnosis", "combination", "where", "ranking",
+                        "gap_before", "gap_after"}
     assert out["diagnosis"] == "asymmetry" and out["combination"][0] == "asymmetry"
+    assert out["verdict"] == "asymmetry" and out["evidence"]["named"]["effect"] == "asymmetry"
     assert set(out["where"][0]) == {"axis", "segment", "error_share", "coverage"}
-    assert set(out["ranking"][0]) == {"effect", "delta_elpd", "se", "shrink_calibration", "shrink_holdout"}
+    assert set(out["ranking"][0]) == {"effect", "delta_elpd", "se", "shrink_calibration", "shrink_holdout",
+                                      "passes_rule", "named", "why", "calibration_blocks", "holdout_blocks",
+                                      "shrink", "shrink_on"}
     assert out["gap_after"]["holdout"] < out["gap_before"]["holdout"]
     for name in ("report.md", "gap_map.png", "loops.png", "ranking.png"):
         assert (tmp_path / "out" / name).stat().st_size > 0

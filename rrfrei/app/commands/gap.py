@@ -18,6 +18,25 @@ Example:
   rrfrei gap protocol1 --law plasticity --holdout protocol2 --out gap   # bundled synthetic tests
   rrfrei gap loop.csv --law bouc_wen --time-budget 1800 --out gap   # rerun with the same --out resumes
 
+Verdicts (first line of the report, "verdict" in the JSON):
+  EFFECT        an effect is named: its leave-one-block-out gains on TEST and its squared-error
+                reductions on the held-out blocks (half-cycles; time windows for monotonic or
+                earthquake-like tests) pass a sign or Wilcoxon signed-rank test, and the
+                block-bootstrap interval of the held-out systematic-gap shrink lies above 10 %
+  none          what is left is noise: the systematic gap is within the noise (MSE / sigma^2 - 1
+                <= 0.25) or below 1 % NRMSE, and no effect passes the rule
+  unexplained   a systematic gap that no catalogued effect closes: where it lies, its size and
+                the candidate that came closest (with its shrink and why it was rejected)
+  incomplete    effects were skipped or not evaluated (time budget) and none of the others passed
+
+JSON (--json): verdict, diagnosis (the named effect, else none/incomplete), combination,
+evidence (the rule; baseline residual: systematic gap, excess over noise, lag-1
+autocorrelation; for a named effect its block tests, shrink interval and what is left; for none
+the reasons; for unexplained where/size/closest), ranking (per effect: elpd gain, shrinks,
+passes_rule, named, block tests, shrink interval, why), where, gap_before, gap_after,
+complete, skipped, not_evaluated, time_budget, notes.  Band coverage is never adequacy: a band
+widened by the noise sd covers a model that misses.
+
 Exit status: 0 a report was written (possibly an incomplete diagnosis: see its first lines);
 1 the baseline could not be fitted (numerical failure, or the time budget ran out during it);
 2 a user error (file, column, law, effect, option).
@@ -32,9 +51,10 @@ def register(sub) -> None:
         "gap", help="diagnose the sim-to-real gap of a calibrated law (which unmodelled effect)",
         description=(
             "Calibrate LAW on TEST, find where its residuals exceed the noise, refit the law with "
-            "each catalogue effect (degradation, mullins, rollover, rate, asymmetry, slip), rank "
-            "them by leave-one-cycle-out elpd and held-out predictive score, and write a Markdown "
-            "report with figures to DIR."),
+            "each catalogue effect (degradation, mullins, rollover, rate, asymmetry, slip), decide "
+            "on block tests over half-cycles (calibration and held-out) and a block bootstrap of the "
+            "held-out systematic gap, give a verdict (an effect, none, unexplained, incomplete) with "
+            "its evidence, and write a Markdown report with figures to DIR."),
         epilog=EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("test", help="calibration test CSV (or a bundled name: protocol1..protocol4)")
     p.add_argument("--law", default="bouc_wen", help="base law (default: bouc_wen)")
@@ -74,5 +94,5 @@ def run(args) -> int:
         json.dump(rep.as_dict(), sys.stdout, indent=2)
         print()
     else:
-        print(f"diagnosis: {rep.diagnosis}; combination: {'+'.join(rep.combination) or 'none'}; report {md}")
+        print(f"verdict: {rep.verdict}; combination: {'+'.join(rep.combination) or 'none'}; report {md}")
     return 0
