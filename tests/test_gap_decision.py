@@ -249,6 +249,134 @@ def test_the_baseline_optimum_is_at_least_as_good_as_calibrates_optimum_on_the_s
     assert gap(test.force, f_base) <= gap(test.force, f_cal) * (1 + 1e-3)
 
 
+def test_the_diagnosis_runs_blas_on_one_thread_and_restores_it_after():
+    import numpy  # noqa: F401  (loads its BLAS)
+    from threadpoolctl import threadpool_info
+
+    from rrfrei.gap.diagnose import one_blas_thread
+
+    def blas():
+        return [d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"]
+
+    before = blas()
+    if not before:
+        pytest.skip("no BLAS library that threadpoolctl can control is loaded")
+    with one_blas_thread():
+        assert blas() == [1] * len(before)
+    assert blas() == before
+
+
+@pytest.mark.parametrize("asym,verdict", [(0.3, "asymmetry"), (0.0, "none")])
+def test_linear_model_reports_agree_with_their_json(asym, verdict, tmp_path):
+    cal, ho = _tests(asym)
+    rep = diagnose(LinearModel(), cal, [ho], effects=EFFECTS)
+    assert rep.verdict == verdict
+    md = write_report(rep, tmp_path).read_text()
+    js = json.loads(json.dumps(rep.as_dict()))
+    _check_one_story(md, js)
+
+
+def test_a_systematic_gap_no_effect_closes_is_unexplained_with_where_size_and_closest(tmp_path):
+    """force = 2 u + a 3.3 Hz ripple: none of |u|, u^3, u t closes it."""
+    out = []
+    for k, amp in enumerate((1.0, 1.5)):
+        t = np.linspace(0.0, 10.0, 500, endpoint=False)
+        u = amp * np.sin(2 * np.pi * t)
+        f = 2 * u + 0.3 * np.sin(2 * np.pi * 3.3 * t) + np.random.default_rng(k).normal(0, 0.05, u.size)
+        out.append(ShearTest(f"ripple{k}", t, u, f))
+    rep = diagnose(LinearModel(), out[0], [out[1]], effects=EFFECTS)
+    assert rep.diagnosis == "none" and rep.verdict == "unexplained"
+    ev = rep.evidence
+    assert set(ev["systematic_on"]) == {"calibration", "holdout"}
+    assert ev["size"]["holdout"] == pytest.approx(0.1, rel=0.2)  # ripple RMS / force RMS
+    assert len(ev["where"]) == 3 and {"axis", "segment", "error_share"} <= set(ev["where"][0])
+    assert ev["closest"]["effect"] in EFFECTS and ev["closest"]["shrink"] < 0.5
+    assert ev["closest"]["passes_rule"] is False
+    md = write_report(rep, tmp_path).read_text()
+    _check_one_story(md, rep.as_dict())
+    assert "unexplained" in md and ev["closest"]["effect"] in md
+
+
+# --- the rule's parts --------------------------------------------------------------------------
+def test_blocks_are_half_cycles_of_a_cyclic_test_and_windows_of_a_monotonic_one():
+    t, u = protocol(1)
+    lab = dec.blocks(u)
+    assert lab.max() + 1 == 24  # 12 cycles, split at each downward zero crossing
+    assert np.all(np.diff(lab) >= 0) and lab[0] == 0
+    for b in range(24):  # each half-cycle keeps one sign (but for the samples at the crossings)
+        seg = u[lab == b]
+        assert min((seg > 1e-4).mean(), (seg < -1e-4).mean()) < 0.05
+    t4, u4 = protocol(4)
+    lab4 = dec.blocks(u4)
+    assert lab4.max() + 1 == dec.WINDOWS and np.bincount(lab4).min() >= len(u4) // dec.WINDOWS
+
+
+def test_rank_tests_keep_their_power_when_one_gain_dwarfs_the_others():
+    """30 blocks all gaining, one of them 10^4 times more: the paired z of the old rule falls
+    below 2, the sign and signed-rank tests do not move."""
+    g = np.full(30, 1.0) + np.linspace(0, 0.5, 30)
+    g[7] = 1e4
+    z = g.sum() / np.sqrt(g.size * g.var(ddof=1))
+    assert z < 2
+    ev = dec.rank_evidence(g)
+    assert ev.positive == 30 and ev.p_sign == pytest.approx(0.5**30)
+    assert ev.p_wilcoxon < 1e-6 and ev.passes()
+    assert not dec.rank_evidence(-g).passes()
+
+
+def test_sign_test_is_the_binomial_tail():
+    assert dec.sign_test([1, 1, 1, -1]) == pytest.approx(5 / 16)
+    assert dec.sign_test([0.0, 0.0]) == 1.0
+
+
+def test_shrink_interval_is_seeded_contains_the_point_and_reads_noise_as_no_shrink():
+    rng = np.random.default_rng(3)
+    n = 200
+    y = np.sin(np.linspace(0, 40, n * 10))
+    lab = np.repeat(np.arange(n // 5), 50)
+    noise = rng.normal(0, 0.05, y.size)
+    ref = y - 0.2 * y + noise  # misses by 20 % of the signal
+    eff = y - 0.02 * y + noise
+    p = dec.block_parts(y + noise, ref, eff, lab, 0.05)
+    a, b = dec.shrink_ci(p, seed=1), dec.shrink_ci(p, seed=1)
+    assert a == b and a.lower <= a.shrink <= a.upper and a.shrink > 0.8 and a.passes()
+    same = dec.block_parts(y + noise, ref, ref, lab, 0.05)
+    assert dec.shrink_ci(same).shrink == 0.0 and not dec.shrink_ci(same).passes()
+
+
+def test_residual_state_calls_white_noise_noise_and_a_smooth_misfit_systematic():
+    rng = np.random.default_rng(0)
+    y = np.sin(np.linspace(0, 60, 3000))
+    e = rng.normal(0, 0.05, y.size)
+    white = dec.residual_state([y + e], [y], [0.05])
+    assert white.noise_only and white.white
+    smooth = dec.residual_state([y + e + 0.1 * y], [y], [0.05])
+    assert not smooth.noise_only and not smooth.white and smooth.systematic > 0.05
+
+
+# --- one baseline ------------------------------------------------------------------------------
+def test_the_baseline_optimum_is_at_least_as_good_as_calibrates_optimum_on_the_same_test():
+    """``rrfrei.calibrate``'s optimum is :func:`find_map` on :func:`setup_problem` with its default
+    evaluations; the diagnosis's baseline is polished from it (and another start), never worse."""
+    from rrfrei.calibration import setup_problem
+    from rrfrei.calibration.sampler import find_map
+    from rrfrei.gap.model import IsolatorModel, _simulate
+    from rrfrei.gap.residuals import gap
+    from rrfrei.io import load_test
+    from rrfrei.laws import get
+
+    test = load_test("protocol1")
+    spec = get("bouc_wen")
+    prob = setup_problem(test, spec)
+    theta, _ = find_map(prob, 0)
+    p = dict(prob.fixed)
+    p.update({n: float(x) for n, x in zip(prob.free, theta[: len(prob.free)])})
+    f_cal = _simulate(spec, np.array([p[n] for n in spec.param_names]), test)[1]
+    fit = IsolatorModel(spec, draws=10).fit(test, seed=0)
+    f_base = _simulate(spec, fit.p_opt, test)[1]
+    assert gap(test.force, f_base) <= gap(test.force, f_cal) * (1 + 1e-3)
+
+
 def test_the_diagnosis_runs_openblas_on_one_thread_and_restores_it_after():
     import ctypes
 

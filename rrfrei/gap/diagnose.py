@@ -447,55 +447,19 @@ def _fit_or_restore(ck: _Checkpoint, step: str, model: GapModel, data, budget: T
     return fit
 
 
-_BLAS_SYMBOLS = (("openblas_set_num_threads", "openblas_get_num_threads"),
-                 ("scipy_openblas_set_num_threads", "scipy_openblas_get_num_threads"),
-                 ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
-                 ("openblas_set_num_threads64_", "openblas_get_num_threads64_"))
-
-
 @contextmanager
 def one_blas_thread():
-    """Run the block with the loaded OpenBLAS libraries on one thread, then restore them.
+    """Run the block with the BLAS libraries on one thread (``threadpoolctl``), then restore them.
 
     The least-squares fits call LAPACK's SVD of a tall, thin Jacobian (a few thousand rows, ~10
     columns) hundreds of times; multithreaded OpenBLAS takes 10-100 ms per call on a shared,
     loaded machine against 0.25 ms on one thread (measured on the 2-core machine: the SVD was 6 of
-    14 s of a diagnosis idle and 75 of 114 s under load).  Uses ``threadpoolctl`` when installed,
-    else the libraries' own ``*_set_num_threads`` entry points (Linux ``/proc/self/maps``); a
-    no-op where neither is found.
+    14 s of a diagnosis idle and 75 of 114 s under load).
     """
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        threadpool_limits = None
-    if threadpool_limits is not None:
-        with threadpool_limits(limits=1, user_api="blas"):
-            yield
-        return
-    restore = []
-    try:
-        import ctypes
+    from threadpoolctl import threadpool_limits
 
-        with open("/proc/self/maps", encoding="utf-8", errors="replace") as fh:
-            paths = {ln.split()[-1] for ln in fh if "openblas" in ln.lower() and "/" in ln}
-        for path in sorted(paths):
-            try:
-                lib = ctypes.CDLL(path)
-            except OSError:
-                continue
-            for set_name, get_name in _BLAS_SYMBOLS:
-                if hasattr(lib, set_name) and hasattr(lib, get_name):
-                    n = int(getattr(lib, get_name)())
-                    getattr(lib, set_name)(1)
-                    restore.append((getattr(lib, set_name), n))
-                    break
-    except OSError:
-        pass
-    try:
+    with threadpool_limits(limits=1, user_api="blas"):
         yield
-    finally:
-        for setter, n in restore:
-            setter(n)
 
 
 def _failure(step: str, exc: BaseException) -> str:
