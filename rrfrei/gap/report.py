@@ -9,13 +9,15 @@ and held-out shrink per effect).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from rrfrei.gap.design import PropertyModification, design_gap, plot_design_gap, property_modification
 from rrfrei.gap.diagnose import GapReport
 
-__all__ = ["write_report", "figures", "verdict_text", "COVERAGE_NOTE"]
+__all__ = ["write_report", "figures", "verdict_text", "COVERAGE_NOTE", "DesignSummary", "design_summary"]
 
 
 def _fig(w: float, h: float):
@@ -165,12 +167,147 @@ def verdict_text(rep: GapReport) -> str:
     return txt + "."
 
 
-def write_report(rep: GapReport, out: str | Path, *, title: str | None = None) -> Path:
-    """Write ``out/report.md`` and the figures; return the Markdown path."""
+@dataclass(frozen=True)
+class DesignSummary:
+    """The gap in design quantities (issue 12 point 5), read from a :class:`GapReport`.
+
+    Attributes
+    ----------
+    final_law : the law with the named effects (``base+effect...``), or the base law itself.
+    tests : test name -> :func:`rrfrei.gap.design.design_gap` table (k_eff [kN/m], beta_eff
+        [-], EDC [kN m], Qd [kN], F(DD) and F(DM) [kN]: measured, before = baseline, after = the
+        law with the named effects; relative errors).
+    lambdas_measured : ASCE 7-22 17.2.8.4 factors from the spread of the *measured* k_eff, Qd and
+        EDC over the cycles at the calibration test's DD in every test (None: no such cycle).
+    lambdas_model : the same from the *law with the named effects* along the same displacements:
+        the factors that the effect implies (None without a named effect).
+    notes : why a part is missing.
+    """
+
+    final_law: str
+    tests: dict
+    lambdas_measured: PropertyModification | None
+    lambdas_model: PropertyModification | None
+    notes: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict:
+        def table(df):
+            return {q: {k: _num(df.loc[q, k]) for k in ("measured", "before", "after", "rel_err_before",
+                                                       "rel_err_after")} | {"unit": df.loc[q, "unit"]}
+                    for q in df.index}
+
+        return {"final_law": self.final_law, "tests": {n: table(df) for n, df in self.tests.items()},
+                "lambdas_measured": (None if self.lambdas_measured is None
+                                     else self.lambdas_measured.to_dict()),
+                "lambdas_model": None if self.lambdas_model is None else self.lambdas_model.to_dict(),
+                "notes": list(self.notes)}
+
+
+def _num(x):
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def design_summary(rep: GapReport) -> DesignSummary:
+    """Design quantities of every test before and after the named effects, and the ASCE 7-22
+    section 17.2.8.4 property modification factors measured and implied by the effect
+    (:mod:`rrfrei.gap.design`; defaults: DD = the test's largest cycle amplitude, DM = 1.5 DD,
+    lambda_ae = 1, lambda_spec = 0.85 / 1.15)."""
+    tests = [rep.calibration_data, *rep.holdout_data]
+    base = rep.fits[rep.law]
+    final_name = "+".join([rep.law, *rep.combination])
+    final = rep.fits.get(final_name) if rep.combination else None
+    notes: list[str] = []
+    tables = {}
+    for t in tests:
+        tables[t.name] = design_gap(t, None, base.predict(t).mean,
+                                    None if final is None else final.predict(t).mean)
+    pm_meas = pm_model = None
+    try:
+        pm_meas = property_modification(tests)
+    except ValueError as exc:
+        notes.append(f"measured property modification factors not formed: {exc}")
+    if final is not None:
+        try:
+            pm_model = property_modification(tests, [final.predict(t).mean for t in tests])
+        except ValueError as exc:
+            notes.append(f"property modification factors of {final_name} not formed: {exc}")
+    return DesignSummary(final_name, tables, pm_meas, pm_model, tuple(notes))
+
+
+def _design_lines(ds: DesignSummary, building=None) -> list[str]:
+    from rrfrei.gap.design import LABELS
+
+    lines = ["## In design quantities", "",
+             "Per test: k_eff, beta_eff (from EDC), Qd and the force at DD and DM (DD = the test's largest "
+             "cycle amplitude, DM = 1.5 DD; F(DM) is n/a when the test does not reach DM: nothing is "
+             f"extrapolated). *before* = the baseline law, *after* = `{ds.final_law}`.", "",
+             "| test | quantity | measured | before | after | error before | error after |",
+             "|---|---|---|---|---|---|---|"]
+    for name, df in ds.tests.items():
+        for q in df.index:
+            r = df.loc[q]
+            lines.append(f"| {name} | {LABELS.get(q, q)} [{r['unit']}] | {_g(r['measured'])} | "
+                         f"{_g(r['before'])} | {_g(r['after'])} | {_pct(r['rel_err_before'])} | "
+                         f"{_pct(r['rel_err_after'])} |")
+    lines += ["", "![design gap](design_gap.png)", "",
+              "### ASCE 7-22 section 17.2.8.4 property modification factors", "",
+              "lambda_test from the spread over the cycles at the reference amplitude, over all tests "
+              "(extreme cycle / pooled mean); lambda_max = (1 + 0.75 (lambda_ae,max - 1)) lambda_test,max "
+              "lambda_spec,max and likewise for lambda_min, with lambda_ae = 1 (no aging data) and "
+              "lambda_spec = 0.85 / 1.15 (defaults, `rrfrei.gap.design.property_modification`).", ""]
+    for label, pm in (("measured", ds.lambdas_measured), (f"implied by `{ds.final_law}`", ds.lambdas_model)):
+        if pm is None:
+            continue
+        lines += [f"{label.capitalize()} (reference amplitude {1e3 * pm.reference_amplitude:.1f} mm, "
+                  f"{pm.n_cycles} cycles of {', '.join(pm.tests)}):", "",
+                  "| property | nominal | lambda_test min / max | lambda_min / lambda_max "
+                  "| lower bound | upper bound |",
+                  "|---|---|---|---|---|---|"]
+        for p, r in pm.table().iterrows():
+            lines.append(f"| {p} [{r['unit']}] | {_g(r['nominal'])} | {r['lambda_test_min']:.3f} / "
+                         f"{r['lambda_test_max']:.3f} | {r['lambda_min']:.3f} / {r['lambda_max']:.3f} | "
+                         f"{_g(r['lower'])} | {_g(r['upper'])} |")
+        lines += [""]
+    lines += [f"> {n}" for n in ds.notes]
+    if building is not None and len(building):
+        med = building[building["record"] == "median"]
+        lines += ["", "### Consequence for a building", "",
+                  f"The bundled five-story building (`structures/buildings/five_story.toml`) on "
+                  f"{building['record'].nunique() - 1} bundled records, its isolators at lower, nominal and "
+                  "upper bound (force-like law parameters times lambda, `rrfrei.gap.design.bound_params`), "
+                  "with and without the named effect. Medians over the records "
+                  f"({building.attrs.get('seconds', float('nan')):.1f} s of analyses):", "",
+                  "| law | effect | bound | lambda | isolator displacement [mm] | base shear [kN] |",
+                  "|---|---|---|---|---|---|"]
+        for r in med.itertuples():
+            lines.append(f"| `{r.law}` | {r.effect} | {r.bound} | {r._4:.3f} | {1e3 * r.iso_disp_peak:.1f} | "
+                         f"{r.base_shear_peak:.0f} |")
+        lines += ["", "![building consequences](consequences.png)", ""]
+    return lines
+
+
+def _g(x) -> str:
+    return "n/a" if x is None or not math.isfinite(float(x)) else f"{float(x):.4g}"
+
+
+def write_report(rep: GapReport, out: str | Path, *, title: str | None = None,
+                 design: DesignSummary | None = None, building=None) -> Path:
+    """Write ``out/report.md`` and the figures; return the Markdown path.
+
+    ``design``: the design-quantity section (:func:`design_summary`, computed when None);
+    ``building``: the table of :func:`structures.consequences.building_consequences` (its figure
+    saved by the caller as ``consequences.png``), or None for no building section.
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     for name, fig in figures(rep).items():
         fig.savefig(out / name)
+    if design is None:
+        design = design_summary(rep)
+    ref = rep.holdout_data[0].name if rep.holdout_data else rep.calibration_data.name
+    plot_design_gap(design.tests[ref], title=f"{ref}: design quantities, {rep.law} vs "
+                    f"{design.final_law}").savefig(out / "design_gap.png")
     b, f = rep.baseline, rep.final
     test = rep.calibration_data
     lines = [f"# {title or 'Sim-to-real gap diagnosis'}", "",
@@ -235,7 +372,9 @@ def write_report(rep: GapReport, out: str | Path, *, title: str | None = None) -
     for r in rep.where.head(12).itertuples():
         lines.append(f"| {r.axis} | {r.segment} | {r.n} | {_pct(r.error_share)} | {r.bias:.3g} | "
                      f"{r.rms_over_noise:.2f} | {_pct(r.coverage)} | {_pct(r.energy_error)} |")
-    lines += ["", "![gap map](gap_map.png)", "", "## Loops", "", "![loops](loops.png)", "",
+    lines += ["", "![gap map](gap_map.png)", "", "## Loops", "", "![loops](loops.png)", ""]
+    lines += _design_lines(design, building)
+    lines += ["",
               "Method: optimum by bounded least squares, Laplace posterior draws, PSIS leave-one-block-out "
               "elpd on the calibration test, per-block squared-error reductions and a block bootstrap of the "
               "systematic gap on the held-out tests (see `rrfrei.gap.decision`).", ""]

@@ -9,8 +9,11 @@ from pathlib import Path
 
 from rrfrei.app.commands.calibrate import add_column_args, load
 from rrfrei.budget import BudgetExceeded, TimeBudget, seconds_arg
+from rrfrei.errors import NUMERICAL_ERRORS
 from rrfrei.gap import diagnose_gap
-from rrfrei.gap.report import write_report
+from rrfrei.gap.report import design_summary, write_report
+from rrfrei.io import ShearTest
+from rrfrei.laws import get as get_law
 
 EXAMPLE = """\
 Example:
@@ -60,7 +63,17 @@ def register(sub) -> None:
     p.add_argument("--law", default="bouc_wen", help="base law (default: bouc_wen)")
     p.add_argument("--holdout", nargs="*", default=[], metavar="CSV", help="held-out tests")
     p.add_argument("--effects", nargs="*", default=None, metavar="EFFECT",
-                   help="effects to try (default: all six)")
+                   help="effects to try (default: every catalogue effect)")
+    p.add_argument("--carry", action="store_true",
+                   help="the tests are runs of ONE specimen in the order given (TEST, then each held-out "
+                        "test): each held-out test is simulated after the ones before it, so scragging, "
+                        "degradation and the law's own state carry over (ShearTest.after)")
+    p.add_argument("--every", type=int, default=1, metavar="K",
+                   help="keep every K-th sample of every test (a stated decimation for dense records; "
+                        "default 1: all)")
+    p.add_argument("--building-records", type=int, default=11, metavar="N",
+                   help="bundled records (first N of the eleven) for the building consequences of the "
+                        "named effect at lower/nominal/upper bound (default 11; 0: no building section)")
     p.add_argument("--out", default="gap-report", metavar="DIR", help="output folder")
     p.add_argument("--seed", type=int, default=0, help="seed of fits and draws (default 0)")
     p.add_argument("--json", action="store_true", help="print the JSON summary on stdout")
@@ -72,12 +85,61 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _every(test: ShearTest, k: int) -> ShearTest:
+    """Every k-th sample of ``test`` (the name says so)."""
+    if k == 1:
+        return test
+    return ShearTest(f"{test.name}[::{k}]", test.time[::k], test.disp[::k], test.force[::k],
+                     has_time=test.has_time, vertical_load=test.vertical_load,
+                     geometry=dict(test.geometry), source=test.source, meta=dict(test.meta))
+
+
+def _building(rep, design, n_records: int, out: Path):
+    """The five-story building at lower/nominal/upper bound with and without the named effects,
+    from the lambdas the effect implies (measured ones without a named effect); None when not
+    asked for or not formed (a note is printed)."""
+    pm = design.lambdas_model or design.lambdas_measured
+    if n_records == 0 or pm is None:
+        return None
+    import ground_motions
+    from structures.consequences import building_consequences, plot_consequences
+
+    fit = rep.fits[design.final_law]
+    base = get_law(rep.law)
+    params = dict(fit.params)
+    base_params = {k: v for k, v in params.items() if k in base.param_names}
+    effect_params = {k: v for k, v in params.items() if k not in base.param_names} or None
+    try:
+        df = building_consequences(design.final_law, base_params, pm, effect_params=effect_params,
+                                   records=list(ground_motions.available())[:n_records])
+    except NUMERICAL_ERRORS as exc:
+        print(f"rrfrei gap: building consequences skipped: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return None
+    fig = plot_consequences(df, title=f"five-story building: {design.final_law} at its bounds")
+    out.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out / "consequences.png")
+    return df
+
+
+def _building_json(df) -> list[dict]:
+    med = df[df["record"] == "median"]
+    return [{"law": r.law, "effect": r.effect, "bound": r.bound, "lambda": float(r._4),
+             "iso_disp_peak_m": float(r.iso_disp_peak), "base_shear_peak_kN": float(r.base_shear_peak)}
+            for r in med.itertuples()]
+
+
 def run(args) -> int:
     budget = TimeBudget(args.time_budget, what="rrfrei gap", option="--time-budget")
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
-    test = load(args.test, args)
-    holdout = [load(h, args) for h in args.holdout]
+    if args.every < 1:
+        raise ValueError(f"--every must be an integer >= 1, got {args.every}")
+    if not 0 <= args.building_records <= 11:
+        raise ValueError(f"--building-records must be in 0..11, got {args.building_records}")
+    test = _every(load(args.test, args), args.every)
+    holdout = [_every(load(h, args), args.every) for h in args.holdout]
+    if args.carry:
+        holdout = [h.after(test, *holdout[:i]) for i, h in enumerate(holdout)]
     try:
         rep = diagnose_gap(test, args.law, holdout=holdout, effects=args.effects, seed=args.seed,
                            progress=not args.no_progress, time_budget=budget,
@@ -89,9 +151,16 @@ def run(args) -> int:
         print(f"rrfrei gap: effect {e} skipped: {why}", file=sys.stderr)
     if rep.budget_message:
         print(rep.budget_message, file=sys.stderr)
-    md = write_report(rep, args.out)
+    design = design_summary(rep)
+    building = _building(rep, design, args.building_records, Path(args.out))
+    md = write_report(rep, args.out, design=design, building=building)
     if args.json:
-        json.dump(rep.as_dict(), sys.stdout, indent=2)
+        out = rep.as_dict()
+        out["design"] = design.as_dict()
+        out["building"] = None if building is None else _building_json(building)
+        if args.every > 1:
+            out["decimation"] = f"every {args.every}th sample"
+        json.dump(out, sys.stdout, indent=2)
         print()
     else:
         print(f"verdict: {rep.verdict}; combination: {'+'.join(rep.combination) or 'none'}; report {md}")
