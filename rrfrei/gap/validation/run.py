@@ -58,22 +58,30 @@ class Settings:
 
     @property
     def signature(self) -> str:
-        """What a checkpoint line must match to be reused: the settings and a hash of the source
-        of the generator forms and cases (edited forms make new data, never stale rows)."""
-        return f"rate={self.rate:g}|draws={self.draws}|combine={int(self.combine)}|data={DATA_HASH}"
+        """What a checkpoint line must match to be reused: the settings, a hash of the generator
+        forms and cases (edited forms make new data) and one of the engine (a changed diagnosis
+        gives new verdicts): never a stale row."""
+        return (f"rate={self.rate:g}|draws={self.draws}|combine={int(self.combine)}|data={DATA_HASH}"
+                f"|engine={ENGINE_HASH}")
 
 
-def _data_hash() -> str:
+def _source_hash(files) -> str:
     import hashlib
 
     h = hashlib.sha256()
-    for name in ("forms.py", "cases.py"):
-        h.update((Path(__file__).parent / name).read_bytes())
+    for f in sorted(files):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
     return h.hexdigest()[:12]
 
 
-DATA_HASH = _data_hash()
+_HERE = Path(__file__).parent
+DATA_HASH = _source_hash([_HERE / "forms.py", _HERE / "cases.py"])
 """Hash of the generator forms' and cases' source as imported (a process keeps the code it loaded)."""
+_PKG = _HERE.parents[1]
+ENGINE_HASH = _source_hash([f for d in ("gap", "laws", "calibration") for f in (_PKG / d).rglob("*.py")
+                            if _HERE not in f.parents] + [_PKG / "io.py"])
+"""Hash of the diagnosis engine's source: rrfrei/gap (but this package), laws, calibration, io."""
 
 
 FULL = Settings(rate=10.0, draws=100)
