@@ -12,7 +12,7 @@ from rrfrei.gap.validation.report import write
 EXAMPLE = """\
 Example:
   python -m rrfrei.app gap-validate --seeds 10 --out docs/gap    # the table of docs/gap/validation.md
-  rrfrei gap-validate --seeds 1 --reduced --out /tmp/gv           # a quick look (5 Hz, 50 draws)
+  rrfrei gap-validate --seeds 1 --reduced --out gv-quick         # a quick look (5 Hz, 50 draws)
   rrfrei gap-validate --seeds 10 --out docs/gap --effects degradation slip   # some effects only
 
 The table: every catalogue effect by each of its three generator forms x SEEDS seeds, plus four
