@@ -110,6 +110,22 @@ def markdown(res: ValidationResult, *, command: str = COMMAND, title_note: str =
         ["effect", "cases", "named", "top-1", "miss rate"],
         [[k, int(r.cases), int(r.named), _pct(r.top1), _pct(r.miss_rate)] for k, r in per.iterrows()],
     )
+    if len(e) and "effect_gap" in e:
+        # thirds of each form's cases ranked by the gap their effect makes (direction-free: a
+        # larger slip capacity is a smaller effect)
+        rank = e.groupby(["effect", "form"]).effect_gap.rank(pct=True, method="first")
+        third = ((rank - 1e-9) * 3).clip(0, 2).astype(int)
+        names = ("small (lower third)", "medium", "large (upper third)")
+        lines += ["", "## Miss rate by effect size (thirds of each form's cases by effect size)", ""]
+        rows = []
+        for eff in res.effects:
+            m = e.effect == eff
+            cells = []
+            for k in range(3):
+                sel = e[m & (third == k)]
+                cells.append(f"{_pct(float((sel.verdict != eff).mean()))} of {len(sel)}" if len(sel) else "")
+            rows.append([eff] + cells)
+        lines += _table(["effect", *names], rows)
     lines += ["", "## Per generator form", ""]
     pf = res.top1("form")
     eg = e.groupby(["effect", "form"], sort=False) if len(e) else None
