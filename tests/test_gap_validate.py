@@ -161,7 +161,7 @@ def test_the_table_runs_in_two_processes_checkpoints_each_case_and_a_rerun_resum
     again = run_table(cl, FULL, workers=1, checkpoint=ck, progress=False)
     assert calls == [] and again.reused == len(cl)
     pd.testing.assert_frame_equal(again.cases, res.cases, check_dtype=False)
-    other = Settings(rate=5.0, draws=50)  # other settings: nothing reused
+    other = Settings(rate=10.0, draws=100)  # other settings: nothing reused
     run_table(cl[:1], other, workers=1, checkpoint=ck, progress=False)
     assert len(calls) == 1
 
@@ -228,7 +228,7 @@ def test_reduced_run_names_each_withheld_effect_by_its_first_form_and_no_effect_
 @pytest.mark.slow
 def test_full_table_meets_issue_12_goals_top1_95_per_effect_no_false_alarm_shrink_50():
     """The table of docs/gap/validation.md: every catalogue effect x 3 forms x 10 seeds, and the
-    four controls x 10 seeds (10 Hz, 100 draws, 2 processes: about 15 minutes)."""
+    four controls x 10 seeds (5 Hz, 50 draws, 2 processes: about 15 minutes)."""
     res = validate(10, workers=2)
     per = res.top1("effect")
     assert (per.top1 >= 0.95).all(), per.to_string()

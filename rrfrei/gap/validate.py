@@ -82,8 +82,8 @@ def validate(
     seeds : a count n (seeds 0..n-1) or a list of seeds.
     cases : effects to include, with ``"control"`` for the controls (default: every effect of the
         catalogue that has generator forms, and the controls).
-    reduced : the quick settings (:data:`rrfrei.gap.validation.REDUCED`: 5 Hz, 50 draws) instead
-        of the table's (:data:`rrfrei.gap.validation.FULL`: 10 Hz, 100 draws).
+    reduced : the quick settings (:data:`rrfrei.gap.validation.REDUCED`, today the table's own:
+        5 Hz, 50 draws; a quick run is one with fewer cases, ``forms``).
     draws : posterior draws per fit (overrides the settings').
     combine : let the diagnosis add further effects (the table scores the first).
     forms : ``"all"`` (three per effect), ``"rotate"`` or ``"first"`` (one per effect and seed).

@@ -6,13 +6,13 @@ import argparse
 from pathlib import Path
 
 from rrfrei.budget import seconds_arg
-from rrfrei.gap.validation import CONTROLS, FULL, REDUCED, Settings, cases, run_table
+from rrfrei.gap.validation import CONTROLS, FULL, Settings, cases, run_table
 from rrfrei.gap.validation.report import write
 
 EXAMPLE = """\
 Example:
   python -m rrfrei.app gap-validate --seeds 10 --out docs/gap    # the table of docs/gap/validation.md
-  rrfrei gap-validate --seeds 1 --reduced --out gv-quick         # a quick look (5 Hz, 50 draws)
+  rrfrei gap-validate --seeds 1 --reduced --out gv-quick         # a quick look: one form per effect
   rrfrei gap-validate --seeds 10 --out docs/gap --effects degradation slip   # some effects only
 
 The table: every catalogue effect by each of its three generator forms x SEEDS seeds, plus four
@@ -70,8 +70,8 @@ def register(sub) -> None:
     p.add_argument(
         "--reduced",
         action="store_true",
-        help=f"quick settings ({REDUCED.rate:g} Hz, {REDUCED.draws} draws) instead of "
-        f"the table's ({FULL.rate:g} Hz, {FULL.draws} draws)",
+        help="one generator form per effect and seed (rotating with the seed) instead of all "
+        f"three: a third of the cases (settings as the table's: {FULL.rate:g} Hz, {FULL.draws} draws)",
     )
     p.add_argument("--workers", type=_positive, default=2, help="processes (default 2)")
     p.add_argument(
@@ -95,9 +95,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    base = REDUCED if args.reduced else FULL
-    settings = Settings(rate=base.rate, draws=base.draws, combine=False, case_budget=args.case_budget)
-    case_list = cases(args.seeds, effects=args.effects, controls=() if args.no_controls else tuple(CONTROLS))
+    settings = Settings(rate=FULL.rate, draws=FULL.draws, combine=False, case_budget=args.case_budget)
+    controls = () if args.no_controls else tuple(CONTROLS)
+    case_list = cases(args.seeds, effects=args.effects, controls=controls,
+                      forms="rotate" if args.reduced else "all")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {args.out!r} is a file; expected a folder")

@@ -43,8 +43,8 @@ class Settings:
         is ``incomplete``.
     """
 
-    rate: float = 10.0
-    draws: int = 100
+    rate: float = 5.0
+    draws: int = 50
     combine: bool = False
     case_budget: float | None = 300.0
 
@@ -84,10 +84,12 @@ ENGINE_HASH = _source_hash([f for d in ("gap", "laws", "calibration") for f in (
 """Hash of the diagnosis engine's source: rrfrei/gap (but this package), laws, calibration, io."""
 
 
-FULL = Settings(rate=10.0, draws=100)
-"""The table's settings (sized so that 10 seeds fit in about 15 minutes on 2 cores)."""
-REDUCED = Settings(rate=5.0, draws=50)
-"""The quick run of the default test suite."""
+FULL = Settings(rate=5.0, draws=50)
+"""The table's settings: 5 Hz (50 samples per 10 s cycle of protocol 1) and 50 draws, sized so
+that 10 seeds of the nine issue-12 effects (310 cases) fit in about 15 minutes on 2 quiet cores.
+On the same 26 cases 10 Hz and 100 draws gave the same verdicts at twice the time."""
+REDUCED = FULL
+"""The settings of quick runs (the same: a quick run has fewer cases, not a coarser resolution)."""
 
 
 def _shrink(before, after) -> float:
