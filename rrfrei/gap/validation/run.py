@@ -85,9 +85,10 @@ ENGINE_HASH = _source_hash([f for d in ("gap", "laws", "calibration") for f in (
 
 
 FULL = Settings(rate=5.0, draws=50)
-"""The table's settings: 5 Hz (50 samples per 10 s cycle of protocol 1) and 50 draws, sized so
-that 10 seeds of the nine issue-12 effects (310 cases) fit in about 15 minutes on 2 quiet cores.
-On the same 26 cases 10 Hz and 100 draws gave the same verdicts at twice the time."""
+"""The table's settings: 5 Hz (50 samples per 10 s cycle of protocol 1) and 50 draws.  Measured
+on 26 cases of the engine with the nine issue-12 effects, 2 processes, on a 2-core machine with a
+load average of 7-10 (other work): 6.0 s of wall time per case (10 Hz and 100 draws: 11.7 s, the
+same 26 verdicts), so 310 cases take about 31 minutes there, about 15 on 2 cores of its own."""
 REDUCED = FULL
 """The settings of quick runs (the same: a quick run has fewer cases, not a coarser resolution)."""
 
