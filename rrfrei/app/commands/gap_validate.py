@@ -16,7 +16,8 @@ Example:
   rrfrei gap-validate --seeds 10 --out docs/gap --effects degradation slip   # some effects only
 
 The table: every catalogue effect by each of its three generator forms x SEEDS seeds, plus four
-controls x SEEDS; 10 seeds took about 15 minutes on 2 cores (see docs/gap/validation.md).
+controls x SEEDS.  10 seeds of six effects (220 cases) took 8 minutes on a shared 2-core machine;
+with the nine effects of issue 12 (310 cases, each diagnosis a third longer) expect 15-30 minutes.
 Finished cases are appended to DIR/validation_cases.jsonl: a rerun with the same --out and
 settings resumes.  Writes DIR/validation.md, validation.json and validation_confusion.png.
 Exit status 0 when the report was written, also when goals were missed (the report says where);
