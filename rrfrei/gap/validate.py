@@ -1,246 +1,135 @@
-"""Validation of the diagnosis on withheld effects (issue 7, item 4).
+"""Validation of the diagnosis on withheld effects: the entry points (issue 7 item 4, issue 12 point 4).
 
-For every catalogue effect and a no-effect control, tests are MADE from a base law plus that
-effect plus Gaussian noise (protocol 1 to calibrate, protocols 2-4 held out, from
-:mod:`rrfrei.protocols`), the effect is withheld from the model, and :func:`diagnose` must name it.
+The generator forms, cases, the parallel table and its report live in
+:mod:`rrfrei.gap.validation`; this module keeps the short names used by the tests and the CLI:
 
-The effect forms that make the data are written here, independently of the catalogue kernels
-(:mod:`rrfrei.laws.effects`): different functions of the same physics, computed by post-processing
-the base law's force (or, for slip, by a separate series solve), so the check is not circular.
-
-=============  ===============================================================================
-effect         data-generating form (catalogue form in brackets)
-=============  ===============================================================================
-degradation    F = F_b (1 - D (1 - exp(-W / W0))), W = int |F_b du|  [1 / (1 + c max int F_b du)]
-mullins        F = F_b (1 - m sin(pi/2 (1 - |u| / u_max)))           [linear in |u| / u_max]
-rollover       F = F_b + K sgn(u) e log(1 + exp((|u| - u_r) / e)), e = 1 mm  [kinked hinge]
-rate           F = F_b + c sgn(v) |v|^0.8, central-difference v      [linear viscous, backward v]
-asymmetry      F = F_b (1 + a tanh(u / 2 mm))                          [1 + a sgn(F_b)]
-slip           elastic-plastic slider of stiffness 1e3 k_init in series, bisection per sample
-               [rigid-plastic slider, Newton]
-=============  ===============================================================================
-
-Base law: ``plasticity`` with the nonlinear hardening term off (``alpha2 = 0``; it would be
-rollover under another name); the model fitted keeps it off (``fixed``).  Noise: iid Gaussian,
-1.5 % of the peak force of protocol 1 (the same instrument for every protocol).  ``seed`` varies
-the noise and perturbs the base parameters (+-10 %) and effect sizes (+-20 %).
-
-Reduced mode (``reduced=True``, the default test suite): every test downsampled to 10 Hz (every
-second sample: 100 samples per 10 s cycle) and 100 posterior draws per fit.
+* :func:`validate` runs the table (every effect of the catalogue by each of its three forms,
+  plus the controls, for the given seeds) and returns a :class:`ValidationResult`;
+* :func:`make_tests` makes protocols 1-4 of one effect by its first form in the middle of its
+  size range, with 1.5 % Gaussian noise, on the ``plasticity`` base law (a fixed example for
+  other tests).
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
 import numpy as np
-import pandas as pd
 
+from rrfrei.gap.validation import (
+    BASES,
+    FIXED,
+    FORMS,
+    FULL,
+    REDUCED,
+    Case,
+    Settings,
+    ValidationResult,
+    forms_of,
+    make_case_tests,
+    run_table,
+)
+from rrfrei.gap.validation.forms import Signal, _EPSlider, series_solve
 from rrfrei.io import ShearTest
-from rrfrei.laws import plasticity
-from rrfrei.protocols import protocol
-from rrfrei.simulate import simulate_force
 
 __all__ = ["CASES", "make_tests", "ValidationResult", "validate", "BASE_LAW", "BASE_PARAMS", "FIXED"]
 
 BASE_LAW = "plasticity"
-BASE_PARAMS = {"k_init": 120.0, "qd": 0.6, "alpha1": 0.2, "alpha2": 0.0, "mu": 2.0}
-FIXED = {"alpha2": 0.0, "mu": 2.0}
+BASE_PARAMS = dict(BASES["plasticity"])
 CASES = ("control", "degradation", "mullins", "rollover", "rate", "asymmetry", "slip")
-NOISE_FRAC = 0.015
+"""The effects every catalogue has had since issue 7, and the control."""
 
 
-def _degradation(u, t, fb, size, w0):
-    w = np.concatenate([[0.0], np.cumsum(np.abs(0.5 * (fb[1:] + fb[:-1]) * np.diff(u)))])
-    return fb * (1.0 - size * (1.0 - np.exp(-w / w0)))
+def make_tests(
+    case: str, seed: int = 0, *, reduced: bool = False, form: str | None = None, size_quantile: float = 0.7
+) -> list[ShearTest]:
+    """Protocols 1-4 of ``case`` (an effect of :data:`rrfrei.gap.validation.FORMS` or
+    ``"control"``) on the ``plasticity`` base law (even ``seed``; odd seeds use ``bouc_wen``).
+
+    ``form`` : the generator form (default the effect's first).  Gaussian noise of 1.5 % of the
+    peak force (the controls of the table have other noises: :data:`rrfrei.gap.validation.CONTROLS`).
+    ``reduced`` samples at 10 Hz instead of 20 Hz.  ``size_quantile`` : where in the form's size
+    range (0 smallest, 1 largest).
+    """
+    if case != "control" and case not in FORMS:
+        raise ValueError(f"case must be one of control, {', '.join(FORMS)}, got {case!r}")
+    rate = 10.0 if reduced else 20.0
+    if case == "control":
+        c = Case("control", "gaussian_0.5%", seed)
+        return make_case_tests(c, rate=rate, noise=("gaussian", 0.015)).tests
+    name = form or forms_of(case)[0].name
+    data = make_case_tests(
+        Case(case, name, seed), rate=rate, size_quantile=size_quantile, noise=("gaussian", 0.015)
+    )
+    return data.tests
 
 
-def _mullins(u, t, fb, size):
-    prev = np.concatenate([[0.0], np.maximum.accumulate(np.abs(u))[:-1]])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.where(prev > 0, np.abs(u) / prev, 1.0)
-    soft = np.where(r < 1.0, size * np.sin(0.5 * math.pi * (1.0 - np.clip(r, 0, 1))), 0.0)
-    return fb * (1.0 - soft)
+def validate(
+    seeds: int | list[int] = 1,
+    *,
+    cases: tuple[str, ...] | None = None,
+    reduced: bool = False,
+    draws: int | None = None,
+    combine: bool = False,
+    forms: str = "all",
+    workers: int = 1,
+    time_budget: float | None = None,
+    checkpoint=None,
+    progress: bool = False,
+) -> ValidationResult:
+    """Run the validation table (see :mod:`rrfrei.gap.validation`).
 
+    Parameters
+    ----------
+    seeds : a count n (seeds 0..n-1) or a list of seeds.
+    cases : effects to include, with ``"control"`` for the controls (default: every effect of the
+        catalogue that has generator forms, and the controls).
+    reduced : the quick settings (:data:`rrfrei.gap.validation.REDUCED`, today the table's own:
+        5 Hz, 50 draws; a quick run is one with fewer cases, ``forms``).
+    draws : posterior draws per fit (overrides the settings').
+    combine : let the diagnosis add further effects (the table scores the first).
+    forms : ``"all"`` (three per effect), ``"rotate"`` or ``"first"`` (one per effect and seed).
+    workers, time_budget, checkpoint, progress : see :func:`rrfrei.gap.validation.run_table`.
+    """
+    from rrfrei.gap.validation import cases as make_cases
 
-def _rollover(u, t, fb, size, onset):
-    e = 1e-3
-    s = (np.abs(u) - onset) / e
-    hinge = e * np.logaddexp(0.0, s)
-    return fb + size * np.sign(u) * hinge
-
-
-def _rate(u, t, fb, size):
-    v = np.gradient(u, t)
-    return fb + size * np.sign(v) * np.abs(v) ** 0.8
-
-
-def _asymmetry(u, t, fb, size):
-    return fb * (1.0 + size * np.tanh(u / 2e-3))
+    base = REDUCED if reduced else FULL
+    settings = Settings(
+        rate=base.rate, draws=draws or base.draws, combine=combine, case_budget=base.case_budget
+    )
+    effects = None if cases is None else [c for c in cases if c != "control"]
+    controls = ("gaussian_0.5%", "gaussian_3%", "student_t3", "ar1_0.8")
+    if cases is not None and "control" not in cases:
+        controls = ()
+    return run_table(
+        make_cases(seeds, effects=effects, controls=controls, forms=forms),
+        settings,
+        workers=workers,
+        time_budget=time_budget,
+        checkpoint=checkpoint,
+        progress=progress,
+    )
 
 
 def _slip(u, t, p, fs, ks):
-    """Base law in series with an elastic-plastic slider (stiffness ks, capacity fs)."""
-    n = u.size
-    out = np.empty(n)
-    sc = np.zeros(1)
-    st = np.zeros(1)
-    us_c = 0.0  # slider displacement
-    up_c = 0.0  # slider plastic displacement
-    for i in range(n):
-        def gap(us, ui=u[i], upc=up_c):
-            st[:] = sc  # the plasticity kernel keeps a sticky trial u_p: start every trial fresh
-            fb, _, _ = plasticity.step(p, sc, ui - us, 0.0, 1.0, st)
-            fsl = min(max(ks * (us - upc), -fs), fs)
-            return fb - fsl
-        # F_b decreases and F_slider increases with us: bracket the root around us_c
-        lo, hi, w = us_c, us_c, 1e-6
-        while gap(lo) < 0:
-            lo -= w
-            w *= 2
-        w = 1e-6
-        while gap(hi) > 0:
-            hi += w
-            w *= 2
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            if gap(mid) > 0:
-                lo = mid
-            else:
-                hi = mid
-        us = 0.5 * (lo + hi)
-        st[:] = sc
-        fb, _, _ = plasticity.step(p, sc, u[i] - us, 0.0, 1.0, st)
-        sc[:] = st
-        q = ks * (us - up_c)
-        if abs(q) > fs:
-            up_c = us - math.copysign(fs, q) / ks
-        us_c = us
-        out[i] = fb
-    return out
+    """``plasticity`` (packed ``p``) in series with an elastic-plastic slider of stiffness ``ks``
+    [kN/m] and capacity ``fs`` [kN], solved by bisection per sample (an independent peer of the
+    catalogue's rigid-plastic ``slip``)."""
+    from rrfrei.laws import get
 
-
-@dataclass(frozen=True)
-class _Truth:
-    base: dict
-    size: float
-    extra: float
-
-
-def _truth(case: str, seed: int) -> _Truth:
-    rng = np.random.default_rng([seed, CASES.index(case)])
-    base = dict(BASE_PARAMS)
-    if seed:
-        for k in ("k_init", "qd", "alpha1"):
-            base[k] *= 1.0 + 0.1 * rng.uniform(-1, 1)
-    f = 1.0 + (0.2 * rng.uniform(-1, 1) if seed else 0.0)
-    sizes = {"control": 0.0, "degradation": 0.3, "mullins": 0.3, "rollover": -20.0, "rate": 6.0,
-             "asymmetry": 0.15, "slip": 1.12}
-    extra = {"rollover": 0.012}.get(case, 0.0)
-    size = sizes[case] * (f if case != "slip" else 1.0)
-    if case == "slip":
-        size = sizes[case] * (1.0 + 0.03 * rng.uniform(-1, 1) if seed else 1.0)
-    return _Truth(base, size, extra)
-
-
-def make_tests(case: str, seed: int = 0, *, reduced: bool = False) -> list[ShearTest]:
-    """Protocols 1-4 made from the base law plus ``case`` (an effect or ``"control"``) plus noise."""
-    if case not in CASES:
-        raise ValueError(f"case must be one of {', '.join(CASES)}, got {case!r}")
-    tr = _truth(case, seed)
-    p = np.array([tr.base[k] for k in ("k_init", "qd", "alpha1", "alpha2", "mu")])
-    raw = []
-    for k in (1, 2, 3, 4):
-        t, u = protocol(k)
-        fb = simulate_force(BASE_LAW, tr.base, u, time=t)
-        raw.append((t, u, fb))
-    t1, u1, fb1 = raw[0]
-    w0 = 0.5 * float(np.sum(np.abs(0.5 * (fb1[1:] + fb1[:-1]) * np.diff(u1))))
-    sigma = NOISE_FRAC * float(np.max(np.abs(fb1)))
-    rng = np.random.default_rng([seed, 100 + CASES.index(case)])
-    out = []
-    for k, (t, u, fb) in enumerate(raw, start=1):
-        if case == "control":
-            f = fb
-        elif case == "degradation":
-            f = _degradation(u, t, fb, tr.size, w0)
-        elif case == "mullins":
-            f = _mullins(u, t, fb, tr.size)
-        elif case == "rollover":
-            f = _rollover(u, t, fb, tr.size, tr.extra)
-        elif case == "rate":
-            f = _rate(u, t, fb, tr.size)
-        elif case == "asymmetry":
-            f = _asymmetry(u, t, fb, tr.size)
-        else:
-            f = _slip(u, t, p, tr.size, 1e3 * tr.base["k_init"])
-        f = f + rng.normal(0.0, sigma, f.size)
-        if reduced:
-            t, u, f = t[::2], u[::2], f[::2]
-        out.append(ShearTest(f"{case}-protocol{k}", t, u, f, meta={"truth": case, "seed": seed}))
-    return out
-
-
-@dataclass(frozen=True)
-class ValidationResult:
-    """Per-case table, confusion matrix, accuracy and false-alarm rate."""
-
-    cases: pd.DataFrame  # case, seed, diagnosed, combination, shrink_holdout, seconds
-    confusion: pd.DataFrame
-
-    @property
-    def accuracy(self) -> float:
-        eff = self.cases[self.cases.case != "control"]
-        return float((eff.case == eff.diagnosed).mean()) if len(eff) else float("nan")
-
-    @property
-    def false_alarms(self) -> int:
-        ctl = self.cases[self.cases.case == "control"]
-        return int((ctl.diagnosed != "none").sum())
-
-    @property
-    def false_alarm_rate(self) -> float:
-        ctl = self.cases[self.cases.case == "control"]
-        return float((ctl.diagnosed != "none").mean()) if len(ctl) else float("nan")
-
-    def as_dict(self) -> dict:
-        return {"accuracy": self.accuracy, "false_alarms": self.false_alarms,
-                "false_alarm_rate": self.false_alarm_rate,
-                "cases": self.cases.to_dict(orient="records"),
-                "confusion": {str(k): {str(c): int(v) for c, v in row.items()}
-                              for k, row in self.confusion.iterrows()}}
-
-
-def validate(seeds: int | list[int] = 1, *, cases=CASES, reduced: bool = False, draws: int | None = None,
-             combine: bool = True, progress=None) -> ValidationResult:
-    """Run the diagnosis on every case x seed and tabulate (see the module docstring)."""
-    import time
-
-    from rrfrei.gap.diagnose import diagnose_gap
-
-    seed_list = list(range(seeds)) if isinstance(seeds, (int, np.integer)) else list(seeds)
-    if not seed_list:
-        raise ValueError("seeds must be a positive count or a non-empty list")
-    draws = draws or (100 if reduced else 200)
-    rows = []
-    for seed in seed_list:
-        for case in cases:
-            t0 = time.perf_counter()
-            tests = make_tests(case, seed, reduced=reduced)
-            rep = diagnose_gap(tests[0], BASE_LAW, holdout=tests[1:], fixed=FIXED, draws=draws,
-                               seed=seed, combine=combine, progress=False)
-            named = next((s for s in rep.ranking if s.effect == rep.diagnosis), None)
-            rows.append({"case": case, "seed": seed, "diagnosed": rep.diagnosis,
-                         "combination": "+".join(rep.combination) or "none",
-                         "shrink_holdout": named.shrink_holdout if named else float("nan"),
-                         "gap_before": rep.baseline[1].gap, "gap_after": rep.final[1].gap,
-                         "seconds": time.perf_counter() - t0})
-            if progress:
-                progress(rows[-1])
-    df = pd.DataFrame(rows)
-    cols = [c for c in cases if c != "control"] + ["none"]
-    conf = pd.crosstab(df.case, df.diagnosed).reindex(index=list(cases), columns=cols, fill_value=0)
-    conf.index.name = "true"
-    conf.columns.name = "diagnosed"
-    return ValidationResult(df, conf)
+    spec = get("plasticity")
+    u = np.asarray(u, dtype=float)
+    sig = Signal(
+        np.asarray(t, dtype=float),
+        u,
+        np.zeros_like(u),
+        spec.step,
+        np.asarray(p, dtype=float),
+        np.array(spec.initial_state, dtype=float),
+        1.0,
+        1.0,
+        0.02,
+        0.03,
+        float(p[0]),
+        float(p[2] * p[0]),
+        float(p[1]),
+    )
+    return series_solve(sig, _EPSlider(ks, fs))
