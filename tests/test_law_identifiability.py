@@ -4,11 +4,14 @@ Bouc-Wen (OpenSees, A = 1): scaling qd by c and beta, gamma by c^eta leaves the 
 unchanged to round-off, for any c, so calibration must hold one of them (``ParamSpec.hold``).
 """
 
+import warnings
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rrfrei import laws, protocols, simulate_force
+from rrfrei.simulate import LocalSolverDeviation
 
 
 @settings(max_examples=20, deadline=None)
@@ -18,8 +21,12 @@ def test_bouc_wen_force_is_invariant_along_the_qd_beta_gamma_ridge(c, eta, ratio
     base = dict(k_init=2500.0, qd=2.0, alpha1=0.1, alpha2=0.0, mu=2.0, eta=eta, beta=0.5,
                 gamma=0.5 * ratio)
     scaled = dict(base, qd=c * base["qd"], beta=c**eta * base["beta"], gamma=c**eta * base["gamma"])
-    f0 = simulate_force("bouc_wen", base, u)
-    f1 = simulate_force("bouc_wen", scaled, u)
+    # eta < 1: OpenSees' local Newton can fail near z = 0 (about 1 draw in 300); the robust solve
+    # (OpenSees' iteration, bracketed where it fails) keeps the fact about the equations testable
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LocalSolverDeviation)
+        f0 = simulate_force("bouc_wen", base, u, local_solver="robust")
+        f1 = simulate_force("bouc_wen", scaled, u, local_solver="robust")
     assert np.max(np.abs(f1 - f0)) <= 1e-8 * np.max(np.abs(f0))
 
 
