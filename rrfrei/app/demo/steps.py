@@ -32,6 +32,7 @@ from rubber.io import load_vhb4910
 from rubber.study import synthetic_test
 from structures import Isolator, load_building
 from structures.propagate import propagate
+from structures.shake_table_gap import CHANNELS as CHANNELS_ST
 from structures.shake_table_gap import shake_table_gap
 from structures.shake_table_report import figures as shake_table_figures
 from structures.shake_table_report import gap_table as shake_table_gap_table
@@ -311,6 +312,11 @@ def step_shake_table(ctx: DemoContext, sec: Section) -> None:
         sec.add_table("ranking", _na_as_text(rank, ("delta_holdout", "se_holdout", "shrink_holdout")),
                       "Each catalogue effect added to the isolator law, on the isolation tests (force given "
                       "the measured displacement; held-out runs predicted after the runs before them).")
+    if len(res.building_check):
+        sec.add_table("building_check", _na_as_text(res.building_check, CHANNELS_ST),
+                      "Held-out NRMSE per channel of the building with the optimum of the baseline and of "
+                      "every candidate effect (one analysis each): does the isolation-level ranking carry "
+                      "to the building?")
     if len(res.law_scores):
         sec.add_table("laws", _na_as_text(res.law_scores, ("loco_elpd", "nrmse")),
                       "Law choice: leave-one-cycle-out elpd on the calibration isolation tests.")
