@@ -53,10 +53,10 @@ def main() -> None:
     warnings.simplefilter("ignore")
     argv = QUICK if args.quick else FULL
     with tempfile.TemporaryDirectory(prefix="rrfrei-shake-") as d:
-        cache, out = Path(d) / "cache", Path(d) / "out"
-        cold = run(argv, cache, out)
+        cache = Path(d) / "cache"
+        cold = run(argv, cache, Path(d) / "cold")
         print(f"cold {cold['wall']:.0f} s", flush=True)
-        warm = run(argv, cache, out)
+        warm = run(argv, cache, Path(d) / "warm")  # a new --out: no checkpointed fit is reused
         print(f"warm {warm['wall']:.0f} s", flush=True)
     r = warm["result"]
     hb, ha = r["gap_before"]["holdout"], r["gap_after"]["holdout"]

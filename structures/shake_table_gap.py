@@ -53,6 +53,7 @@ that fails (``ConvergenceError``) is left out too.  When every draw fails the pi
 from __future__ import annotations
 
 import math
+import tempfile
 import time as _time
 import warnings
 from collections.abc import Mapping, Sequence
@@ -67,7 +68,7 @@ from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.calibration.checks import nrmse
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
-from rrfrei.gap.diagnose import GapReport, _loco, diagnose
+from rrfrei.gap.diagnose import GapReport, _Checkpoint, _loco, diagnose
 from rrfrei.gap.model import LEVEL, FitResult, GapModel, IsolatorFit, IsolatorModel, Prediction
 from rrfrei.io import ShearTest
 from rrfrei.laws.specialise import history
@@ -639,15 +640,21 @@ def _names(items) -> list[str]:
 
 
 def _pick_law(cal: ShearTest, laws: Sequence[str], draws: int, seed: int, budget: TimeBudget,
-              notes: list[str]) -> tuple[str, pd.DataFrame, dict]:
-    """Fit each law in ``laws`` and rank by leave-one-cycle-out elpd (PSIS) on ``cal``."""
+              notes: list[str], checkpoint) -> tuple[str, pd.DataFrame, dict]:
+    """Fit each law in ``laws`` and rank by leave-one-cycle-out elpd (PSIS) on ``cal``; every fit is
+    saved in the ``checkpoint`` folder as the diagnosis's baseline, so the chosen law's is reused."""
     model = IsolatorModel(laws[0], draws=draws)
     groups = model.groups(cal)
     rows, fits = [], {}
     for law in laws:
         t0 = _time.perf_counter()
         try:
-            fit = CarriedFit(IsolatorModel(law, draws=draws).fit(cal, seed=seed, budget=budget))
+            m = CarriedIsolatorModel(IsolatorModel(law, draws=draws))
+            ck = _Checkpoint(checkpoint, m, cal, seed)
+            fit = ck.get("baseline")
+            if fit is None:
+                fit = m.fit(cal, seed=seed, budget=budget)
+                ck.put("baseline", m, fit)
             elpd = float(_loco(fit.loglik(cal), groups).sum())
             nr = float(nrmse(np.asarray(cal.force), fit.predict(cal).mean))
         except BudgetExceeded:
@@ -713,6 +720,7 @@ def shake_table_gap(
     seed: int = 0,
     time_budget: float | TimeBudget | None = 170.0,
     progress: bool = False,
+    checkpoint: str | Path | None = None,
 ) -> ShakeTableGap:
     """Calibrate, diagnose and predict a base-isolated building on shake-table runs.
 
@@ -732,6 +740,9 @@ def shake_table_gap(
     pad_s : rest between runs in the building's record [s].
     time_budget : wall-clock limit of the whole pipeline [s]; the diagnosis gets what the law
         choice leaves minus a reserve for the building runs, and stops with the effects it has.
+    checkpoint : folder where every finished isolator fit is saved and reused by a rerun (as in
+        :func:`rrfrei.gap.diagnose`); None: a temporary folder, so that the law choice's fit of
+        the chosen law is the diagnosis's baseline.
 
     Raises
     ------
@@ -787,8 +798,12 @@ def shake_table_gap(
     seconds["isolation tests"] = _time.perf_counter() - t0
     # 2. law
     t0 = _time.perf_counter()
+    tmp = None
+    if checkpoint is None:
+        tmp = tempfile.TemporaryDirectory(prefix="rrfrei-shake-")
+        checkpoint = tmp.name
     if law == "auto":
-        base_law, law_scores, _ = _pick_law(cal, AUTO_LAWS, draws, seed, budget, notes)
+        base_law, law_scores, _ = _pick_law(cal, AUTO_LAWS, draws, seed, budget, notes, checkpoint)
     else:
         base_law, law_scores = str(law), pd.DataFrame(columns=["law", "loco_elpd", "nrmse", "seconds"])
     seconds["law choice"] = _time.perf_counter() - t0
@@ -801,10 +816,13 @@ def shake_table_gap(
     model = CarriedIsolatorModel(IsolatorModel(base_law, draws=draws))
     try:
         rep = diagnose(model, cal, held, effects=effects, seed=seed, progress=progress,
-                       time_budget=diag_budget)
+                       time_budget=diag_budget, checkpoint=checkpoint)
     except BudgetExceeded as exc:
         raise NumericalFailure(f"the baseline fit of {base_law!r} did not finish within the time budget: "
                                f"{exc}") from None
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
     seconds["diagnosis"] = _time.perf_counter() - t0
     # 4. building: superstructure, then every run with the baseline and the final law
     t0 = _time.perf_counter()

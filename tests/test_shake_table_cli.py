@@ -211,3 +211,32 @@ def test_the_building_driven_by_the_runs_in_order_reproduces_one_simulation_of_t
                                        err_msg=f"{run} {c}")
     assert pred.nrmse(["one", "two"])["isolator_disp"] < 1e-6
     assert pred.coverage(["two"], {c: 1e-9 for c in CHANNELS})["roof_accel"] > 0.99
+
+
+def test_a_rerun_with_the_same_out_reuses_the_fits_and_gives_the_same_numbers(cli_json, split):
+    import contextlib
+    import io
+
+    root, _, _ = split
+    code, first, out = cli_json
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert cli.main(_argv(root, "--out", str(out), "--json")) == 0
+    a, b = json.loads(first), json.loads(buf.getvalue())
+    assert any("reused" in n for n in b["notes"]) and not any("reused" in n for n in a["notes"])
+    assert b["gap_before"] == a["gap_before"] and b["gap_after"] == a["gap_after"]
+
+
+def test_the_default_law_is_the_best_leave_one_cycle_out_elpd_of_the_opensees_laws(split, capsys):
+    root, _, _ = split
+    argv = [a if a != "plasticity" else "auto" for a in _argv(root, "--out", str(root / "auto"), "--json")]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert cli.main(argv) == 0
+    data = json.loads(capsys.readouterr().out)
+    scores = {r["law"]: r["loco_elpd"] for r in data["law_scores"]}
+    assert set(scores) == set(stg.AUTO_LAWS)
+    assert data["law"] == max(scores, key=scores.get)
+    # the chosen law's fit is the diagnosis's baseline, not fitted twice
+    assert any("reused 1 finished fits" in n and "baseline" in n for n in data["notes"])

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 import warnings
+from pathlib import Path
 
 from rrfrei.budget import seconds_arg
 from rrfrei.laws import get
@@ -18,6 +19,7 @@ Example:
   rrfrei shake-table CNP100 LAC100 ICA50 ICA100 --calibrate ICA50 --holdout ICA100 --law bouc_wen --out st
   rrfrei shake-table run1/ run2.csv --calibrate run1 --holdout run2 --building bldg.toml --out st
 
+A rerun with the same --out reuses the finished isolator fits (DIR/checkpoint).
 RUNs are given in chronological order (the isolators' state is carried from each run to the
 next); a RUN is a bundled name (CNP100, LAC100, ICA50, ICA100), a folder (a1..aN, d1..dN, u, du)
 or a CSV with its TOML sidecar.  Writes DIR/shake_table.md and its figures.
@@ -100,7 +102,7 @@ def run(args) -> int:
         res = shake_table_gap(args.runs or None, calibrate=args.calibrate, holdout=args.holdout, law=args.law,
                               building=args.building, rate_hz=args.rate, effects=args.effects, draws=draws,
                               n_draws=args.draws, seed=args.seed, time_budget=args.time_budget,
-                              progress=not args.no_progress)
+                              progress=not args.no_progress, checkpoint=Path(args.out) / "checkpoint")
     for w in caught:
         if w.category.__name__ in ("ConsistencyWarning",):
             print(f"rrfrei shake-table: warning: {w.message}", file=sys.stderr)
