@@ -580,6 +580,19 @@ class ShakeTableGap:
         b, a = self.gap_before["holdout"], self.gap_after["holdout"]
         return {c: (1.0 - a[c] / b[c]) if b[c] > 0 else math.nan for c in CHANNELS}
 
+    def building_best(self) -> dict | None:
+        """The candidate of :attr:`building_check` with the lowest held-out isolator-displacement
+        NRMSE and its shrink against the baseline optimum (None without held-out runs).  It is
+        chosen by looking at the held-out runs: evidence for a diagnosis, not an independent test."""
+        bc = self.building_check.dropna(subset=["isolator_disp"]) if len(self.building_check) else None
+        if bc is None or not len(bc) or bc["effect"].iloc[0] != "baseline":
+            return None
+        row = bc.loc[bc["isolator_disp"].idxmin()]
+        base = float(bc["isolator_disp"].iloc[0])
+        return {"effect": str(row["effect"]), "law": str(row["law"]),
+                "isolator_disp": float(row["isolator_disp"]), "baseline_isolator_disp": base,
+                "shrink": 1.0 - float(row["isolator_disp"]) / base if base > 0 else math.nan}
+
     def as_dict(self) -> dict:
         """The JSON object of ``rrfrei shake-table --json``."""
         rep = self.report
@@ -602,6 +615,8 @@ class ShakeTableGap:
             "shrink_holdout": {k: _num(v) for k, v in self.shrink().items()},
             "building_check": [{k: _num(v) if isinstance(v, float) else v for k, v in row.items()}
                                for row in self.building_check.to_dict("records")],
+            "building_best": (None if (bb := self.building_best()) is None
+                              else {k: _num(v) if isinstance(v, float) else v for k, v in bb.items()}),
             "final_law": self.final_law,
             "calibrate": list(self.calibrate),
             "holdout": list(self.holdout),

@@ -84,6 +84,10 @@ def test_json_is_one_object_with_the_issue_keys_and_per_channel_gaps(cli_json):
     # the baseline and every ranked candidate run through the building
     assert [r["effect"] for r in data["building_check"]] == ["baseline", "rollover"]
     assert set(CHANNELS) <= set(data["building_check"][0])
+    best = min(data["building_check"], key=lambda r: r["isolator_disp"])
+    assert data["building_best"]["effect"] == best["effect"]
+    assert data["building_best"]["shrink"] == pytest.approx(
+        1 - best["isolator_disp"] / data["building_check"][0]["isolator_disp"])
 
 
 def test_extrapolation_is_the_held_out_peak_over_the_calibrated_peak(cli_json, split):
