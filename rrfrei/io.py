@@ -21,8 +21,8 @@ from __future__ import annotations
 import csv
 import math
 import re
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -32,7 +32,7 @@ import pandas as pd
 
 from rrfrei._inputs import read_toml
 
-__all__ = ["ShearTest", "read_test", "load_test", "bundled_tests", "MIN_POINTS"]
+__all__ = ["ShearTest", "concat_tests", "read_test", "load_test", "bundled_tests", "MIN_POINTS"]
 
 MIN_POINTS = 10
 """Fewest samples a test may have."""
@@ -62,6 +62,12 @@ class ShearTest:
     geometry : bearing geometry in m (keys are law parameter names: d1, d2, tr, n, tc, ...).
     source : file path, or "" for tests built in memory.
     meta : anything else (column names, units, notes).
+    preceding : earlier tests of the same specimen, in chronological order, that a model
+        simulates (but does not score) before this one, so the state a bearing carries from one
+        run to the next (scragging, degradation, plastic offset) is in its prediction
+        (:func:`rrfrei.gap.model.IsolatorFit.predict`); set it with :meth:`after`.  Nested
+        histories are flattened (each earlier test's own ``preceding`` comes first).  Not part of
+        the samples: never written to CSV (:meth:`to_frame`), not compared.
     """
 
     name: str
@@ -73,6 +79,7 @@ class ShearTest:
     geometry: dict = field(default_factory=dict)
     source: str = ""
     meta: dict = field(default_factory=dict)
+    preceding: tuple = field(default=(), compare=False, repr=False)
 
     def __post_init__(self) -> None:
         for key in ("time", "disp", "force"):
@@ -104,6 +111,19 @@ class ShearTest:
                     f"after {self.time[i]} s"
                 )
         object.__setattr__(self, "geometry", _check_geometry(dict(self.geometry), where))
+        if self.preceding:
+            object.__setattr__(self, "preceding", _flatten_preceding(self.preceding, where))
+            _merge_geometry([*self.preceding, self])
+
+    def after(self, *earlier: ShearTest) -> ShearTest:
+        """A copy of this test run after ``earlier`` (chronological order) on the same specimen.
+
+        Raises
+        ------
+        ValueError
+            an element is not a :class:`ShearTest`, or its geometry disagrees with this test's.
+        """
+        return replace(self, preceding=tuple(earlier))
 
     def __len__(self) -> int:
         return int(self.disp.size)
@@ -116,6 +136,82 @@ class ShearTest:
     def to_frame(self) -> pd.DataFrame:
         """Columns ``time_s``, ``disp_m``, ``force_kN``."""
         return pd.DataFrame({"time_s": self.time, "disp_m": self.disp, "force_kN": self.force})
+
+
+def _flatten_preceding(preceding, where: str) -> tuple[ShearTest, ...]:
+    if isinstance(preceding, ShearTest) or not isinstance(preceding, Sequence):
+        raise ValueError(f"preceding{where} must be a tuple of ShearTest (earliest first), got "
+                         f"{type(preceding).__name__}")
+    out: list[ShearTest] = []
+    for k, t in enumerate(preceding):
+        if not isinstance(t, ShearTest):
+            raise ValueError(f"preceding[{k}]{where} must be a ShearTest, got {type(t).__name__}")
+        out.extend(t.preceding)
+        out.append(replace(t, preceding=()) if t.preceding else t)
+    return tuple(out)
+
+
+def _merge_geometry(tests: Sequence[ShearTest]) -> dict[str, float]:
+    """The union of the tests' geometries; a key given twice must have one value."""
+    geo: dict[str, float] = {}
+    owner: dict[str, str] = {}
+    for t in tests:
+        for k, v in t.geometry.items():
+            if k in geo and geo[k] != v:
+                raise ValueError(f"geometry of test {t.name!r} disagrees with test {owner[k]!r}: "
+                                 f"{k} = {v} m, expected {geo[k]} m (one specimen)")
+            geo.setdefault(k, v)
+            owner.setdefault(k, t.name)
+    return geo
+
+
+def concat_tests(tests: Sequence[ShearTest], name: str | None = None) -> ShearTest:
+    """Join tests of one specimen into one test, in the order given.
+
+    Each part's time is shifted so that it starts one sampling interval (its own first step)
+    after the previous part ends; ``has_time`` only when every part has real time (else the time
+    is the sample index).  The geometry is the union of the parts' (a key given by two parts must
+    agree); the vertical load is the parts' common value (None when they differ); the result's
+    ``preceding`` is the first part's, and ``meta["parts"]`` lists ``(name, samples)``.
+
+    Parameters
+    ----------
+    tests : one or more :class:`ShearTest`, earliest first.
+    name : label (default: the parts' names joined by ``+``).
+
+    Raises
+    ------
+    ValueError
+        no tests, an element that is not a ShearTest, or disagreeing geometry.
+    """
+    tests = [] if isinstance(tests, ShearTest) else list(tests)
+    if not tests:
+        raise ValueError("concat_tests: tests must be a non-empty sequence of ShearTest")
+    for k, t in enumerate(tests):
+        if not isinstance(t, ShearTest):
+            raise ValueError(f"concat_tests: tests[{k}] must be a ShearTest, got {type(t).__name__}")
+    geo = _merge_geometry(tests)
+    has_time = all(t.has_time for t in tests)
+    if has_time:
+        parts = [tests[0].time]
+        for t in tests[1:]:
+            step = float(t.time[1] - t.time[0])
+            parts.append(t.time - t.time[0] + parts[-1][-1] + step)
+        time = np.concatenate(parts)
+    else:
+        time = np.arange(sum(len(t) for t in tests), dtype=float)
+    loads = {t.vertical_load for t in tests}
+    return ShearTest(
+        name=name if name is not None else "+".join(t.name for t in tests),
+        time=time,
+        disp=np.concatenate([t.disp for t in tests]),
+        force=np.concatenate([t.force for t in tests]),
+        has_time=has_time,
+        vertical_load=loads.pop() if len(loads) == 1 else None,
+        geometry=geo,
+        meta={"parts": [(t.name, len(t)) for t in tests]},
+        preceding=tests[0].preceding,
+    )
 
 
 def _check_geometry(geometry: Mapping[str, Any], where: str) -> dict[str, float]:

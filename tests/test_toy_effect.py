@@ -60,7 +60,7 @@ def test_away_from_neutral_it_adds_the_offset_of_the_largest_displacement(toy):
 def test_the_gap_diagnosis_lists_it_among_its_candidates_in_its_stated_order(toy):
     cat = catalogue()
     assert toy.NAME in cat
-    assert list(cat)[-1] == toy.NAME  # order 50, after the six shipped effects (1-6)
+    assert list(cat)[-1] == toy.NAME  # order 50, after the nine shipped effects (1-9)
     assert cat[toy.NAME].spec is toy.EFFECT
 
 

@@ -36,6 +36,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import weakref
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -46,7 +47,7 @@ from scipy.optimize import least_squares
 from rrfrei.budget import TimeBudget
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap.catalogue import Scales, catalogue
-from rrfrei.io import ShearTest
+from rrfrei.io import ShearTest, concat_tests
 from rrfrei.laws import LawSpec, get
 from rrfrei.laws.specialise import history
 
@@ -149,13 +150,39 @@ def test_scales(test: ShearTest) -> Scales:
     return Scales(force=f or 1.0, disp=d or 1.0, vel=v, energy=e)
 
 
+_HISTORIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""test -> the concatenation of its ``preceding`` tests and itself (built once per test)."""
+
+
+def _history_of(test: ShearTest) -> ShearTest:
+    full = _HISTORIES.get(test)
+    if full is None:
+        full = concat_tests([*test.preceding, test], name=test.name)
+        _HISTORIES[test] = full
+    return full
+
+
 def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
               out: np.ndarray | None = None) -> tuple[int, np.ndarray]:
+    """Force [kN] of ``test``'s samples, and the driver's status.
+
+    When the test has ``preceding`` tests (:meth:`rrfrei.io.ShearTest.after`) the law is driven
+    through them first, along their concatenation with the test (:func:`rrfrei.io.concat_tests`:
+    real time only if every part has it), so the state the specimen carries into the test is in
+    the force; only the test's own samples are returned.
+    """
     n = len(test)
     F = np.empty(n) if out is None else out
-    T = np.empty(n)
     sc = np.array(spec.initial_state, dtype=float)
-    status, _ = history(spec)(p, sc, sc.copy(), test.disp, test.time, bool(test.has_time), 1, F, T)
+    if not test.preceding:
+        T = np.empty(n)
+        status, _ = history(spec)(p, sc, sc.copy(), test.disp, test.time, bool(test.has_time), 1, F, T)
+        return int(status), F
+    full = _history_of(test)
+    Ff = np.empty(len(full))
+    T = np.empty(len(full))
+    status, _ = history(spec)(p, sc, sc.copy(), full.disp, full.time, bool(full.has_time), 1, Ff, T)
+    F[:] = Ff[len(full) - n:]
     return int(status), F
 
 
@@ -279,19 +306,23 @@ class IsolatorModel(GapModel):
         if n < 50:
             return None
         return ShearTest(data.name + "[first half]", data.time[:n], data.disp[:n], data.force[:n],
-                         has_time=data.has_time, geometry=dict(data.geometry))
+                         has_time=data.has_time, geometry=dict(data.geometry),
+                         preceding=data.preceding)
 
     # --- checkpoints -------------------------------------------------------------------------
     def checkpoint_key(self, data: ShearTest) -> str:
-        """SHA-256 of the test's samples and geometry, the law, fixed values, draws and search size."""
+        """SHA-256 of the test's samples and geometry (and those of its ``preceding`` tests, when
+        it has any), the law, fixed values, draws and search size."""
         h = hashlib.sha256()
         for a in (data.time, data.disp, data.force):
             h.update(np.ascontiguousarray(np.asarray(a, dtype=np.float64)).tobytes())
-        h.update(json.dumps({"has_time": bool(data.has_time),
-                             "geometry": {str(k): repr(v) for k, v in sorted(dict(data.geometry).items())},
-                             "law": self.spec.name, "fixed": sorted(self.fixed.items()),
-                             "draws": self.draws, "global_evals": GLOBAL_EVALS,
-                             "format": CHECKPOINT_FORMAT}, sort_keys=True).encode())
+        settings = {"has_time": bool(data.has_time),
+                    "geometry": {str(k): repr(v) for k, v in sorted(dict(data.geometry).items())},
+                    "law": self.spec.name, "fixed": sorted(self.fixed.items()),
+                    "draws": self.draws, "global_evals": GLOBAL_EVALS, "format": CHECKPOINT_FORMAT}
+        if data.preceding:  # absent otherwise: the keys of tests without history are unchanged
+            settings["preceding"] = [self.checkpoint_key(t) for t in data.preceding]
+        h.update(json.dumps(settings, sort_keys=True).encode())
         return h.hexdigest()
 
     def fit_state(self, fit: IsolatorFit) -> dict[str, np.ndarray]:

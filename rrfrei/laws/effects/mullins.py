@@ -1,4 +1,4 @@
-"""Effect ``mullins``: scragging, softer reloading below the largest past |u| (inner, scaling).
+"""Effect ``mullins``: Mullins softening, softer reloading below the largest past |u| (inner, scaling).
 
 Below the largest |u| reached so far, ``u_max``, the response is softer,
 ``g = 1 - m (1 - |u| / u_max)``; virgin loading beyond ``u_max`` is unsoftened (Mullins 1969;
@@ -44,5 +44,6 @@ EFFECT = register_effect(EffectSpec(
     (ParamSpec("mullins", "-", 0.0, 0.95,
                "softening at zero displacement of reloading below the largest past |u|",
                Prior("uniform", 0.0, 0.9)),),
-    1, "scragging: softer reloading below the previous maximum deformation", (0.0,), apply=apply,
+    1, "Mullins softening: softer reloading below the previous maximum deformation (recovers beyond it)",
+    (0.0,), apply=apply,
     hints=HINTS))
