@@ -14,9 +14,9 @@ earthquake, where does it miss, why, and what fixes it?*:
    ``elastomeric_x`` needs the bearings' geometry, which the data do not give) and keeps the
    one with the highest leave-one-cycle-out elpd (PSIS) on the calibration data.
 2. **Diagnosis.** :func:`rrfrei.gap.diagnose` on that joined test, every held-out run's
-   isolation test predicted *after* the runs that precede it (:class:`CarriedTest`: the law is
-   driven through the earlier runs' measured displacements first, so softening carried from run
-   to run is visible to the effects that hold state).  Effects: the catalogue's
+   isolation test predicted *after* the runs that precede it (:meth:`rrfrei.io.ShearTest.after`:
+   the law is driven through the earlier runs' measured displacements first, so softening
+   carried from run to run is visible to the effects that hold state).  Effects: the catalogue's
    (``rrfrei.gap.catalogue.catalogue()``) unless ``effects`` names some.
 3. **Building.** The superstructure from :func:`structures.identify_superstructure` on the
    calibration run where it holds (every story R^2 >= 0.8 and k, c > 0; the best such run by
@@ -70,16 +70,15 @@ from rrfrei.calibration.checks import nrmse
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap.diagnose import GapReport, _Checkpoint, _loco, diagnose
 from rrfrei.gap.model import LEVEL, FitResult, GapModel, IsolatorFit, IsolatorModel, Prediction
-from rrfrei.io import ShearTest
+from rrfrei.io import ShearTest, concat_tests
 from rrfrei.laws.specialise import history
 from structures.building import Isolator, ShearBuilding
 from structures.history import ConvergenceError, time_history
 from structures.identify import identify_superstructure
 from structures.shake_table import ShakeTableRun, available_runs, isolation_test, load_run, read_run
 
-__all__ = ["AUTO_LAWS", "BNCS_ORDER", "CHANNELS", "CarriedIsolatorModel", "CarriedTest",
-           "ShakeTableGap", "SequencePrediction", "join_tests", "predict_sequence", "resolve_run",
-           "shake_table_gap"]
+__all__ = ["AUTO_LAWS", "BNCS_ORDER", "CHANNELS", "CarriedIsolatorModel", "ShakeTableGap",
+           "SequencePrediction", "predict_sequence", "resolve_run", "shake_table_gap"]
 
 BNCS_ORDER = ("CNP100", "LAC100", "ICA50", "ICA100")
 """The bundled runs in the order of the BNCS base-isolated test program (Chen et al. 2016; the
@@ -118,72 +117,14 @@ def resolve_run(spec: str | Path | ShakeTableRun) -> ShakeTableRun:
     return read_run(s)
 
 
-def join_tests(tests: Sequence[ShearTest], name: str | None = None) -> ShearTest:
-    """The tests one after the other as one :class:`ShearTest` (time made continuous: each test
-    starts one sample step after the previous one ends); the samples are unchanged."""
-    if not tests:
-        raise ValueError("join_tests needs at least one test")
-    if len(tests) == 1 and name is None:
-        return tests[0]
-    ts, ds, fs, t0 = [], [], [], 0.0
-    for t in tests:
-        dt = float(t.time[1] - t.time[0]) if len(t) > 1 else 1.0
-        ts.append(np.asarray(t.time) - float(t.time[0]) + t0)
-        ds.append(np.asarray(t.disp))
-        fs.append(np.asarray(t.force))
-        t0 = float(ts[-1][-1]) + dt
-    return ShearTest(name or "+".join(t.name for t in tests), np.concatenate(ts), np.concatenate(ds),
-                     np.concatenate(fs), has_time=all(t.has_time for t in tests),
-                     meta={"joined": [t.name for t in tests], "lengths": [len(t) for t in tests]})
-
-
-@dataclass(frozen=True, eq=False)
-class CarriedTest:
-    """A held-out test predicted after ``preceding`` (the law's state carried over from it).
-
-    Exposes the held-out test's ``name``, ``time``, ``disp``, ``force`` and ``has_time``, so the
-    gap engine scores the held-out samples only.
-    """
-
-    test: ShearTest
-    preceding: ShearTest | None = None
-
-    @property
-    def name(self) -> str:
-        return self.test.name
-
-    @property
-    def disp(self) -> np.ndarray:
-        return self.test.disp
-
-    @property
-    def force(self) -> np.ndarray:
-        return self.test.force
-
-    @property
-    def time(self) -> np.ndarray:
-        return self.test.time
-
-    @property
-    def has_time(self) -> bool:
-        return self.test.has_time
-
-    def __len__(self) -> int:
-        return len(self.test)
-
-    @property
-    def joined(self) -> ShearTest:
-        return self.test if self.preceding is None else join_tests([self.preceding, self.test],
-                                                                   name=f"{self.preceding.name}>{self.name}")
-
-
-def _test_of(data) -> ShearTest:
-    return data.test if isinstance(data, CarriedTest) else data
-
-
 def simulate_law(spec, p: np.ndarray, test: ShearTest) -> tuple[int, np.ndarray]:
-    """Force [kN] of law ``spec`` with parameters ``p`` along ``test``; a failing local solve is
-    retried with :data:`SUBSTEPS` sub-increments.  Returns (status, force): status 0 on success."""
+    """Force [kN] of law ``spec`` with parameters ``p`` on ``test``'s samples, driven first
+    through its ``preceding`` tests (:meth:`rrfrei.io.ShearTest.after`: the state they leave is
+    carried in); a failing local solve is retried with :data:`SUBSTEPS` sub-increments per sample.
+    Returns (status, force): status 0 on success."""
+    n = len(test)
+    if test.preceding:
+        test = concat_tests([*test.preceding, test], name=test.name)
     drive = history(spec)
     F = np.empty(len(test))
     T = np.empty(len(test))
@@ -196,8 +137,8 @@ def simulate_law(spec, p: np.ndarray, test: ShearTest) -> tuple[int, np.ndarray]
             status = -98
         status = int(status)
         if status == 0 and np.all(np.isfinite(F)):
-            return 0, F
-    return status if status != 0 else -3, F
+            return 0, F[len(test) - n:]
+    return status if status != 0 else -3, F[len(test) - n:]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -205,8 +146,9 @@ def simulate_law(spec, p: np.ndarray, test: ShearTest) -> tuple[int, np.ndarray]
 # ---------------------------------------------------------------------------------------------
 @dataclass(eq=False)
 class CarriedFit(FitResult):
-    """An :class:`IsolatorFit` whose predictions of a :class:`CarriedTest` start from the state
-    left by the preceding runs, with failing simulations retried (:func:`simulate_law`)."""
+    """An :class:`IsolatorFit` whose failing simulations are retried with sub-increments
+    (:func:`simulate_law`) instead of turning every prediction into NaN; a test's ``preceding``
+    runs are driven through first, as in :class:`IsolatorFit`."""
 
     inner: IsolatorFit
     _cache: dict = field(default_factory=dict, repr=False)
@@ -243,23 +185,22 @@ class CarriedFit(FitResult):
         key = id(data)
         if key in self._cache:
             return self._cache[key][1]
-        full = data.joined if isinstance(data, CarriedTest) else data
         n = len(data)
         fit = self.inner
         S = fit.P.shape[0]
         F = np.empty((S, n))
         ok = np.zeros(S, dtype=bool)
         for s in range(S):
-            st, f = simulate_law(fit.spec, fit.P[s], full)
+            st, f = simulate_law(fit.spec, fit.P[s], data)
             if st == 0:
-                F[s] = f[len(full) - n:]
+                F[s] = f
                 ok[s] = True
         if not ok.any():
-            st, f = simulate_law(fit.spec, fit.p_opt, full)
+            st, f = simulate_law(fit.spec, fit.p_opt, data)
             if st != 0:
                 raise NumericalFailure(f"law {fit.name!r} on {data.name!r}: every posterior draw and the "
                                        f"optimum fail (status {st}, also with {SUBSTEPS[-1]} sub-increments)")
-            F, ok, sig = f[None, len(full) - n:], np.array([True]), np.array([fit.sigma])
+            F, ok, sig = f[None, :], np.array([True]), np.array([fit.sigma])
         else:
             F, sig = F[ok], fit.sig[ok]
         rng = np.random.default_rng(fit.seed + 1)
@@ -278,7 +219,9 @@ class CarriedFit(FitResult):
 
 
 class CarriedIsolatorModel(GapModel):
-    """:class:`IsolatorModel` whose held-out data may be :class:`CarriedTest`\\ s (state carried)."""
+    """:class:`IsolatorModel` whose fits are :class:`CarriedFit`\\ s (held-out runs given as
+    ``test.after(*earlier)`` carry the state of the earlier runs, as with :class:`IsolatorModel`;
+    here a failing simulation is retried rather than lost)."""
 
     def __init__(self, inner: IsolatorModel) -> None:
         self.inner = inner
@@ -292,25 +235,25 @@ class CarriedIsolatorModel(GapModel):
         return self.inner.spec
 
     def fit(self, data, *, seed: int = 0, start=None, budget: TimeBudget | None = None) -> CarriedFit:
-        return CarriedFit(self.inner.fit(_test_of(data), seed=seed, start=start, budget=budget))
+        return CarriedFit(self.inner.fit(data, seed=seed, start=start, budget=budget))
 
     def augment(self, effects: Sequence[str]) -> CarriedIsolatorModel:
         return CarriedIsolatorModel(self.inner.augment(effects))
 
     def observed(self, data) -> np.ndarray:
-        return self.inner.observed(_test_of(data))
+        return self.inner.observed(data)
 
     def groups(self, data) -> np.ndarray:
-        return self.inner.groups(_test_of(data))
+        return self.inner.groups(data)
 
     def cannot_judge(self, effect: str, data) -> str | None:
-        return self.inner.cannot_judge(effect, _test_of(data))
+        return self.inner.cannot_judge(effect, data)
 
     def early(self, data) -> ShearTest | None:
-        return self.inner.early(_test_of(data))
+        return self.inner.early(data)
 
     def checkpoint_key(self, data) -> str:
-        return self.inner.checkpoint_key(_test_of(data)) + "|carried"
+        return self.inner.checkpoint_key(data) + "|retried"
 
     def fit_state(self, fit: CarriedFit) -> dict[str, np.ndarray]:
         return self.inner.fit_state(fit.inner)
@@ -802,12 +745,9 @@ def shake_table_gap(
     t0 = _time.perf_counter()
     tests = {n: isolation_test(by_name[n].decimate(rate_hz)) for n in order}
     cal_seq = [n for n in order if n in cal_names]
-    cal = join_tests([tests[n] for n in cal_seq], name="+".join(cal_seq))
-    held = []
-    for h in ho_names:
-        before = [tests[n] for n in order[:order.index(h)]]
-        held.append(CarriedTest(tests[h], join_tests(before, name="+".join(t.name for t in before))
-                                if before else None))
+    cal = concat_tests([tests[n] for n in cal_seq], name="+".join(cal_seq))
+    # each held-out run after every run before it in the order (its state carried in)
+    held = [tests[h].after(*[tests[n] for n in order[:order.index(h)]]) for h in ho_names]
     cal_peak = float(np.max(np.abs(cal.disp)))
     extrapolation = {h: float(np.max(np.abs(by_name[h].isolator_disp)) / cal_peak) for h in ho_names}
     seconds["isolation tests"] = _time.perf_counter() - t0
