@@ -81,6 +81,7 @@ def test_json_is_one_object_with_the_issue_keys_and_per_channel_gaps(cli_json):
     assert all(0.0 <= v <= 1.0 for v in data["coverage"].values())
     assert [r["effect"] for r in data["ranking"]] == ["rollover"]
     assert data["where"] and {"axis", "segment", "run", "channel", "error_share"} <= set(data["where"][0])
+    assert {r["axis"] for r in data["where"]} == {"channel", "amplitude", "frequency", "time window"}
     # the baseline and every ranked candidate run through the building
     assert [r["effect"] for r in data["building_check"]] == ["baseline", "rollover"]
     assert set(CHANNELS) <= set(data["building_check"][0])
