@@ -51,6 +51,7 @@ class DemoSettings:
     shake_rate_hz: float = 25.0
     shake_draws: int = 40
     shake_budget_s: float = 150.0
+    shake_effects: tuple[str, ...] | None = None  # None: every catalogue effect
 
     @classmethod
     def full_run(cls, seed: int = 0) -> DemoSettings:
@@ -73,7 +74,8 @@ class DemoSettings:
             shake_calibrate=("ICA50",),
             shake_law="plasticity",
             shake_draws=20,
-            shake_budget_s=40.0,
+            shake_budget_s=60.0,
+            shake_effects=("rate", "mullins", "scragging", "stiffening"),
         )
 
 

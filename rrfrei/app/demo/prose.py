@@ -231,7 +231,8 @@ def shake_table_reading(res: Any, *, quick: bool) -> str:
             text += (" The goal is not met: beyond the calibrated range the law follows its form, not data, "
                      "and the model drifts out of phase with the measurement over the long record.")
     if quick:
-        text += " QUICK run: one calibration run, a closed-form law and a 40 s budget for the diagnosis."
+        text += (" QUICK run: one calibration run, a closed-form law, four effects (rate, mullins, "
+                 "scragging, stiffening) and a 60 s budget.")
     return text
 
 
