@@ -20,7 +20,7 @@ HERE = Path(__file__).resolve().parent
 
 #: Order: the cheap per-core comparisons first, the long multi-core and whole-command runs last.
 SCRIPTS = ("spectra", "laws", "time_history", "rubber", "calibration", "propagation", "gap",
-           "rubber_multirate", "fresh_clone")
+           "shake_table", "rubber_multirate", "fresh_clone")
 #: Sections written by a mode of another script (no --quick mode: skipped by a smoke run).
 MODES = {"rubber_multirate": ("rubber", "--multirate")}
 

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-STEPS = ("tests", "calibration", "comparison", "validation", "gap", "propagation", "rubber")
+STEPS = ("tests", "calibration", "comparison", "validation", "gap", "propagation", "shake_table", "rubber")
 
 
 @pytest.fixture(scope="module")

@@ -13,12 +13,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rrfrei.app.commands import calibrate, compare, demo, gap, gap_validate, propagate
+from rrfrei.app.commands import calibrate, compare, demo, gap, gap_validate, propagate, shake_table
 from rrfrei.errors import NUMERICAL_ERRORS
 
 #: Command modules, in the order they appear in --help.
-COMMAND_MODULES = (calibrate, compare, gap, gap_validate, propagate, demo)
-#: Their names (the module names; ``gap_validate`` is the ``gap-validate`` command).
+COMMAND_MODULES = (calibrate, compare, gap, gap_validate, propagate, shake_table, demo)
+#: Their names (the module names; ``gap_validate`` is the ``gap-validate`` command, ``shake_table``
+#: the ``shake-table`` command).
 COMMANDS = tuple(m.__name__.rpartition(".")[2] for m in COMMAND_MODULES)
 
 USER_ERRORS = (ValueError, FileNotFoundError, IsADirectoryError, PermissionError, KeyError)

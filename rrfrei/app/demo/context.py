@@ -44,6 +44,14 @@ class DemoSettings:
     rubber_evals: int = 800
     rubber_restarts: int = 1
     predict_draws: int = 200
+    # the real base-isolated building (BNCS shake-table runs): calibrate -> hold out
+    shake_calibrate: tuple[str, ...] = ("CNP100", "LAC100", "ICA50")
+    shake_holdout: tuple[str, ...] = ("ICA100",)
+    shake_law: str = "auto"
+    shake_rate_hz: float = 25.0
+    shake_draws: int = 40
+    shake_budget_s: float = 150.0
+    shake_effects: tuple[str, ...] | None = None  # None: every catalogue effect
 
     @classmethod
     def full_run(cls, seed: int = 0) -> DemoSettings:
@@ -63,6 +71,11 @@ class DemoSettings:
             rubber_evals=300,
             rubber_restarts=1,
             predict_draws=100,
+            shake_calibrate=("ICA50",),
+            shake_law="plasticity",
+            shake_draws=20,
+            shake_budget_s=60.0,
+            shake_effects=("rate", "mullins", "scragging", "stiffening"),
         )
 
 
