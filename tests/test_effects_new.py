@@ -103,11 +103,16 @@ def test_stiffening_raises_the_secant_stiffness_more_the_larger_the_amplitude_an
 def test_stiffening_tangent_is_continuous_at_the_onset_unlike_rollover():
     _, k_s = simulate_force("plasticity+stiffening", {**PL, "stiff_k": 50.0, "stiff_onset": 0.01},
                             np.linspace(0, 0.03, 3001), return_tangent=True)
-    _, k_r = simulate_force("plasticity+rollover", {**PL, "roll_k": 50.0, "roll_onset": 0.01},
+    _, k_r = simulate_force("plasticity+rollover", {**PL, "roll_k": -50.0, "roll_onset": 0.01},
                             np.linspace(0, 0.03, 3001), return_tangent=True)
     i = 1000  # u = 0.01 exactly: the onset
     assert abs(k_s[i + 2] - k_s[i - 2]) < 1.0  # the added tangent is 50 * 2e-5 / 0.01 = 0.1 kN/m
-    assert k_r[i + 2] - k_r[i - 2] == pytest.approx(50.0)
+    assert k_r[i + 2] - k_r[i - 2] == pytest.approx(-50.0)  # rollover's kink (softening only)
+
+
+def test_rollover_only_softens_stiffening_is_its_own_effect():
+    with pytest.raises(ValueError, match="roll_k"):
+        simulate_force("plasticity+rollover", {**PL, "roll_k": 50.0, "roll_onset": 0.01}, U1)
 
 
 # --- pinching ----------------------------------------------------------------------------------

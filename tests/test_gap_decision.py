@@ -226,6 +226,19 @@ def test_residual_state_calls_white_noise_noise_and_a_smooth_misfit_systematic()
     assert not smooth.noise_only and not smooth.white and smooth.systematic > 0.05
 
 
+def test_heavy_tailed_white_noise_is_noise_not_a_systematic_gap():
+    rng = np.random.default_rng(1)
+    y = np.sin(np.linspace(0, 60, 3000))
+    e = 0.05 * rng.standard_t(3, y.size)  # variance 3 x 0.05^2: the robust sigma sees 0.05
+    heavy = dec.residual_state([y + e], [y], [0.05])
+    assert heavy.excess > dec.EXCESS  # the tails alone exceed the robust noise level ...
+    assert heavy.white and heavy.noise_only  # ... but nothing is serially systematic
+    ar1 = np.zeros(y.size)
+    for i in range(1, y.size):
+        ar1[i] = 0.8 * ar1[i - 1] + 0.05 * rng.normal()
+    assert not dec.residual_state([y + ar1], [y], [0.05]).white
+
+
 # --- one baseline ------------------------------------------------------------------------------
 def test_the_baseline_optimum_is_at_least_as_good_as_calibrates_optimum_on_the_same_test():
     """``rrfrei.calibrate``'s optimum is :func:`find_map` on :func:`setup_problem` with its default

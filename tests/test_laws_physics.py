@@ -2,6 +2,7 @@
 forms, and convergence of the implicit integration under sub-stepping."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -10,8 +11,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import rrfrei
+from rrfrei import laws
 from rrfrei.energy import cycle_metrics
 from rrfrei.protocols import protocol1
+from rrfrei.simulate import LocalSolverDeviation
 
 _, P1 = protocol1()
 
@@ -39,7 +42,12 @@ def test_every_cycle_dissipates_nonnegative_energy(law, data):
     """EDC >= 0 in each of the 12 protocol-1 cycles (beta >= |gamma| for Bouc-Wen; HDR with a
     positive elastic potential and bounding surface)."""
     p = data.draw(PHYSICAL[law])
-    f = rrfrei.simulate_force(law, p, P1)
+    # Bouc-Wen: OpenSees' local Newton can fail at some draws (e.g. eta = 3, qd = 0.01 at sample 1);
+    # the robust solve (OpenSees' iteration, bracketed where it fails) keeps the fact testable there
+    opt = {"local_solver": "robust"} if laws.get(law).step_robust is not None else {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LocalSolverDeviation)
+        f = rrfrei.simulate_force(law, p, P1, **opt)
     e = cycle_metrics(P1, f)["energy"].to_numpy()
     assert len(e) == 12
     scale = np.max(np.abs(f)) * np.max(np.abs(P1))

@@ -47,9 +47,12 @@ Significance of an effect (:func:`significant`)
 
 What is left (:func:`residual_state`)
     the residual of the chosen model is *noise* when its systematic part is small against the
-    noise (``MSE / sigma^2 - 1 <= EXCESS``) or negligible (systematic NRMSE <= ``SYS_FLOOR``);
-    whiteness is reported as the lag-1 autocorrelation of the residuals (white noise: ``|rho1|``
-    below ``2 / sqrt(n)``).
+    noise (``MSE / sigma^2 - 1 <= EXCESS``), negligible (systematic NRMSE <= ``SYS_FLOOR``), or
+    when the residuals are white: lag-1 autocorrelation ``|rho1| < 2 / sqrt(n)`` (Box & Jenkins
+    1976: the sample autocorrelation of white noise has sd ``1 / sqrt(n)``).  The last clause
+    keeps heavy-tailed noise (Student-t, outliers) from reading as a systematic gap: the
+    excess over the robust white-noise level grows with the tails, while a model error of a
+    smooth law on a smooth history is serially correlated.
 """
 
 from __future__ import annotations
@@ -329,7 +332,7 @@ class Residual:
     @property
     def noise_only(self) -> bool:
         """True when what is left is noise (the module docstring's rule)."""
-        return bool(not self.excess > EXCESS or not self.systematic > SYS_FLOOR)
+        return bool(not self.excess > EXCESS or not self.systematic > SYS_FLOOR or self.white)
 
     @property
     def white(self) -> bool:

@@ -715,8 +715,9 @@ def _verdict(sc: _Scorer, diagnosis: str, combination: list[str], base: FitResul
                                          f", and the block-bootstrap {dec.LEVEL:.0%} interval of the "
                                          f"calibration test's systematic-gap shrink lies above "
                                          f"{dec.MIN_SHRINK:.0%}")
-            + f"; what is left is noise when its MSE / sigma^2 - 1 <= {dec.EXCESS:g} or its "
-            f"systematic NRMSE <= {dec.SYS_FLOOR:.0%}")
+            + f"; what is left is noise when its MSE / sigma^2 - 1 <= {dec.EXCESS:g}, its "
+            f"systematic NRMSE <= {dec.SYS_FLOOR:.0%}, or its residuals are white (|lag-1 "
+            "autocorrelation| < 2 / sqrt(n))")
     before = {k: v.as_dict() for k, v in _residuals(sc, base).items()}
     ev: dict = {"rule": rule, "baseline": before, "tied": list(tied)}
     scored = [s for s in ranking if math.isfinite(s.shrink_holdout if sc.holdout else s.shrink_calibration)]
@@ -741,8 +742,10 @@ def _verdict(sc: _Scorer, diagnosis: str, combination: list[str], base: FitResul
     ev["systematic_on"] = noisy
     if not noisy:
         ev["reasons"] = [
-            f"{k}: systematic gap {_pct(v.systematic)} of the RMS force, MSE / sigma^2 - 1 = {v.excess:.2f} "
-            f"(noise: <= {dec.EXCESS:g} or <= {dec.SYS_FLOOR:.0%}); lag-1 autocorrelation of the residuals "
+            f"{k}: systematic gap {_pct(v.systematic)} of the RMS force, "
+            f"MSE / sigma^2 - 1 = {v.excess:.2f} "
+            f"(noise: <= {dec.EXCESS:g}, <= {dec.SYS_FLOOR:.0%} or white); "
+            "lag-1 autocorrelation of the residuals "
             f"{v.rho1:.2f} ({'white' if v.white else 'not white'} at 2 / sqrt(n))" for k, v in res.items()]
         if closest is not None:
             ev["reasons"].append(f"no effect passes the block rule; closest {closest.effect}: {closest.why}")

@@ -1,8 +1,10 @@
 """Effect ``rollover``: amplitude-dependent tangent at large displacement (inner, additive).
 
-``f_a = k_r sgn(u) (|u| - u_r)_+`` (``k_r < 0``: rollover softening of unbonded FREIs;
-``k_r > 0``: stiffening at full rollover or large strain; Toopchi-Nezhad et al. 2008).  Elastic
-(path independent).  Neutral: ``k_r = 0``.  No state.
+``f_a = k_r sgn(u) (|u| - u_r)_+`` with ``k_r <= 0``: the rollover softening of unbonded FREIs
+(Toopchi-Nezhad et al. 2008), a kinked loss of tangent stiffness beyond the onset.  Stiffening at
+large displacement is the separate effect ``stiffening`` (smooth onset): the two names keep the
+two physical signs apart, so a diagnosis that names one says which way the bearing departs.
+Elastic (path independent).  Neutral: ``k_r = 0``.  No state.
 """
 
 import numpy as np
@@ -31,17 +33,16 @@ def _screen(ctx) -> float:
 HINTS = DiagnosisHints(
     _screen,
     lambda s: [{"roll_k": -0.3 * s.force / s.disp, "roll_onset": 0.5 * s.disp},
-               {"roll_k": 0.3 * s.force / s.disp, "roll_onset": 0.5 * s.disp},
                {"roll_k": -0.3 * s.force / s.disp, "roll_onset": 0.25 * s.disp}],
     lambda s: {"roll_k": s.force / s.disp, "roll_onset": s.disp},
-    lambda s: {"roll_k": (-10 * s.force / s.disp, 10 * s.force / s.disp), "roll_onset": (0.0, s.disp)},
+    lambda s: {"roll_k": (-10 * s.force / s.disp, 0.0), "roll_onset": (0.0, s.disp)},
     order=3)
 
 
 EFFECT = register_effect(EffectSpec(
     "rollover",
-    (ParamSpec("roll_k", "kN/m", -1e9, 1e9,
-               "tangent stiffness change beyond the onset (< 0 rollover softening)",
+    (ParamSpec("roll_k", "kN/m", -1e9, 0.0,
+               "tangent stiffness lost beyond the onset (<= 0: rollover softening)",
                Prior("normal", 0.0, 1.0)),
      ParamSpec("roll_onset", "m", 0.0, 1e3, "displacement at which the tangent changes",
                Prior("halfnormal", 1.0))),
