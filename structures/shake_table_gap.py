@@ -542,6 +542,8 @@ class ShakeTableGap:
         return {
             "law": self.law,
             "diagnosis": self.diagnosis,
+            "verdict": rep.verdict or rep.diagnosis,
+            "evidence": rep.as_dict().get("evidence"),
             "combination": list(self.combination),
             "where": [{k: _num(v) if isinstance(v, float) else v for k, v in row.items()}
                       for row in self.where.to_dict("records")],
@@ -842,7 +844,8 @@ def shake_table_gap(
                          f"(left out of the bands); first: {p.failures[0]}")
     notes.extend(rep.notes)
     return ShakeTableGap(
-        law=rep.law, final_law=final_fit.name, diagnosis=rep.diagnosis, combination=tuple(rep.combination),
+        law=rep.law, final_law=final_fit.name,
+        diagnosis=rep.verdict or rep.diagnosis, combination=tuple(rep.combination),
         calibrate=tuple(cal_order), holdout=tuple(ho_order), order=tuple(order), rate_hz=float(rate_hz),
         report=rep, law_scores=law_scores, identified_on=src, building=build(final_fit), before=before,
         after=after, gap_before=gap_before, gap_after=gap_after, coverage=cov, coverage_parameter_band=cov_p,

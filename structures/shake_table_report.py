@@ -130,20 +130,9 @@ def reading(res: ShakeTableGap) -> str:
                  f"isolator displacement over the calibrated peak ({res.calibrated_peak:.3f} m): {ext}"
                  + (" - the held-out runs go beyond the calibrated range, where only the law's form "
                     "governs." if any(r > 1 for r in res.extrapolation.values()) else "."))
-    if rep.diagnosis in ("none", "incomplete"):
-        best = rep.ranking[0] if rep.ranking else None
-        closest = (f"; the closest candidate is {best.effect} (held-out score gain "
-                   f"{best.delta_holdout:.0f} +/- {best.se_holdout:.0f} nats, isolator-force systematic gap "
-                   f"shrink {100 * best.shrink_holdout:.0f} %)") if best is not None else ""
-        lines.append(f"Diagnosis: **{rep.diagnosis}** - the gap is systematic and no catalogued effect "
-                     f"explains it{closest}.")
-    else:
-        s = rep.steps[0]
-        lines.append(f"Diagnosis: **{'+'.join(rep.combination)}** - on the isolation tests its "
-                     f"leave-one-cycle-out gain is {s.delta_elpd:.0f} +/- {s.se:.0f} nats and its held-out "
-                     f"score gain {s.delta_holdout:.0f} +/- {s.se_holdout:.0f} nats; the held-out "
-                     f"isolator-force gap goes from {100 * rep.baseline[1].gap:.1f} % to "
-                     f"{100 * rep.final[1].gap:.1f} %.")
+    from rrfrei.gap.report import verdict_text
+
+    lines.append("On the isolation tests (force from the measured displacement): " + verdict_text(rep))
     if res.holdout:
         sh = res.shrink()
         hb, ha = res.gap_before["holdout"], res.gap_after["holdout"]

@@ -29,8 +29,8 @@ from structures.building import Isolator, ShearBuilding
 from structures.shake_table import BNCS_WEIGHTS_KN, ShakeTableRun, write_run
 from structures.shake_table_gap import CHANNELS, predict_sequence, simulate_law
 
-KEYS = {"law", "diagnosis", "combination", "where", "ranking", "extrapolation", "gap_before", "gap_after",
-        "coverage"}
+KEYS = {"law", "diagnosis", "verdict", "evidence", "combination", "where", "ranking", "extrapolation",
+        "gap_before", "gap_after", "coverage"}
 
 
 @pytest.fixture(scope="module")

@@ -137,18 +137,13 @@ def gap_reading(rep: Any, best: str) -> str:
         reading += (f" The residuals concentrate in the {top['axis']} segment '{top['segment']}' "
                     f"({pct(top['error_share'])} of the squared error, {fmt(top['rms_over_noise'], 3)} "
                     f"times the noise level).")
-    if rep.diagnosis == "none":
-        reading += (" No catalogue effect improves the expected predictive accuracy significantly: the "
-                    "diagnosis is 'none'.")
-    else:
-        winner = next(e for e in rep.ranking if e.effect == rep.diagnosis)
-        reading += (f" The diagnosis is '{rep.diagnosis}': adding it gains {fmt(winner.delta_elpd, 3)} "
-                    f"(se {fmt(winner.se, 3)}) in leave-one-cycle-out elpd")
+    from rrfrei.gap.report import verdict_text
+
+    reading += " " + verdict_text(rep)
+    if rep.combination:
+        winner = next(e for e in rep.ranking if e.effect == rep.combination[0])
         if math.isfinite(winner.shrink_holdout):
-            reading += f" and shrinks the held-out systematic gap by {pct(winner.shrink_holdout)}"
-        reading += "."
-        if len(rep.combination) > 1:
-            reading += f" The greedy combination is {' + '.join(rep.combination)}."
+            reading += f" It shrinks the held-out systematic gap by {pct(winner.shrink_holdout)}."
         reading += f" With it the calibration gap goes from {pct(b_cal.gap)} to {pct(f_cal.gap)}"
         if b_hold is not None and f_hold is not None:
             reading += f" and the held-out gap from {pct(b_hold.gap)} to {pct(f_hold.gap)}"
@@ -207,18 +202,9 @@ def shake_table_reading(res: Any, *, quick: bool) -> str:
         f"{res.identified_on}; {', '.join(res.holdout)} takes the isolators to {fmt(ratio, 3)} times the "
         f"largest calibrated displacement ({fmt(res.calibrated_peak, 3)} m)."
     )
-    if rep.diagnosis in ("none", "incomplete"):
-        best = rep.ranking[0] if rep.ranking else None
-        text += (f" Diagnosis: {rep.diagnosis}; the held-out gap is systematic and no catalogued effect "
-                 "explains it")
-        if best is not None:
-            text += (f" (closest: {best.effect}, held-out score gain {fmt(best.delta_holdout, 3)} +/- "
-                     f"{fmt(best.se_holdout, 3)} nats)")
-        text += "."
-    else:
-        st = rep.steps[0]
-        text += (f" Diagnosis: {'+'.join(rep.combination)} (held-out score gain {fmt(st.delta_holdout, 3)} "
-                 f"+/- {fmt(st.se_holdout, 3)} nats on the isolation tests).")
+    from rrfrei.gap.report import verdict_text
+
+    text += " On the isolation tests: " + verdict_text(rep)
     if res.holdout:
         hb, ha = res.gap_before["holdout"], res.gap_after["holdout"]
         sh = res.shrink()["isolator_disp"]
