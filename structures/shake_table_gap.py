@@ -64,6 +64,7 @@ import numpy as np
 import pandas as pd
 
 from ground_motions import Record
+from rrfrei._json import number as _num
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.calibration.checks import nrmse
@@ -579,13 +580,6 @@ class ShakeTableGap:
             "seconds": {k: _num(v) for k, v in self.seconds.items()},
             "notes": list(self.notes),
         }
-
-
-def _num(x):
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 def _nums(d: Mapping) -> dict:

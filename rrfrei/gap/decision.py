@@ -63,6 +63,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rrfrei._json import number as _num
+
 __all__ = ["ALPHA", "BOOT", "EXCESS", "LEVEL", "MIN_GAIN", "MIN_SHRINK", "SYS_FLOOR", "WINDOWS", "BlockParts",
            "RankEvidence", "ShrinkEvidence", "Residual", "blocks", "block_parts", "sign_test",
            "wilcoxon_test", "rank_evidence", "shrink_ci", "significant", "residual_state"]
@@ -362,8 +364,3 @@ def residual_state(ys: Sequence, fs: Sequence, sigmas: Sequence[float]) -> Resid
     return Residual(sys_, excess, rho1, n)
 
 
-def _num(x):
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None

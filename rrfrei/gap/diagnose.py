@@ -70,6 +70,7 @@ import numpy as np
 import pandas as pd
 from scipy.special import logsumexp
 
+from rrfrei._json import number as _num
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
@@ -226,13 +227,6 @@ class GapReport:
             "reused_from_checkpoint": list(self.reused),
             "notes": list(self.notes),
         }
-
-
-def _num(x):
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 # ---------------------------------------------------------------------------------------------

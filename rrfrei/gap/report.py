@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rrfrei._json import number as _num
 from rrfrei.gap.design import PropertyModification, design_gap, plot_design_gap, property_modification
 from rrfrei.gap.diagnose import GapReport
 
@@ -201,11 +202,6 @@ class DesignSummary:
                                      else self.lambdas_measured.to_dict()),
                 "lambdas_model": None if self.lambdas_model is None else self.lambdas_model.to_dict(),
                 "notes": list(self.notes)}
-
-
-def _num(x):
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 def design_summary(rep: GapReport) -> DesignSummary:

@@ -7,12 +7,12 @@ lowest held-out NRMSE, else ``"none"``.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from rrfrei._json import number as _num
 from rrfrei.gap.model import white_noise
 from rrfrei.gap.residuals import gap, systematic_gap
 from rubber.gap.effects import EFFECTS
@@ -87,11 +87,6 @@ class RubberGapReport:
                          f"{r.shrink_calibration:.2f} | {r.shrink_holdout:.2f} | "
                          f"{'yes' if r.accepted else 'no'} |")
         return "\n".join(lines)
-
-
-def _num(x):
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 def _shrink(before: float, after: float) -> float:
