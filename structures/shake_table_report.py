@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rrfrei.gap.report import verdict_text
 from structures.shake_table_gap import CHANNELS, UNITS, ShakeTableGap
 
 __all__ = ["figures", "write_report"]
@@ -130,8 +131,6 @@ def reading(res: ShakeTableGap) -> str:
                  f"isolator displacement over the calibrated peak ({res.calibrated_peak:.3f} m): {ext}"
                  + (" - the held-out runs go beyond the calibrated range, where only the law's form "
                     "governs." if any(r > 1 for r in res.extrapolation.values()) else "."))
-    from rrfrei.gap.report import verdict_text
-
     lines.append("On the isolation tests (force from the measured displacement): " + verdict_text(rep))
     if res.holdout:
         sh = res.shrink()

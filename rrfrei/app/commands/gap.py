@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+import ground_motions
 from rrfrei.app.commands.calibrate import add_column_args, load
 from rrfrei.budget import BudgetExceeded, TimeBudget, seconds_arg
 from rrfrei.errors import NUMERICAL_ERRORS
@@ -14,6 +15,7 @@ from rrfrei.gap import diagnose_gap
 from rrfrei.gap.report import design_summary, write_report
 from rrfrei.io import ShearTest
 from rrfrei.laws import get as get_law
+from structures.consequences import building_consequences, plot_consequences
 
 EXAMPLE = """\
 Example:
@@ -101,9 +103,6 @@ def _building(rep, design, n_records: int, out: Path):
     pm = design.lambdas_model or design.lambdas_measured
     if n_records == 0 or pm is None:
         return None
-    import ground_motions
-    from structures.consequences import building_consequences, plot_consequences
-
     fit = rep.fits[design.final_law]
     base = get_law(rep.law)
     params = dict(fit.params)

@@ -15,6 +15,7 @@ import pandas as pd
 
 from rrfrei.app.demo.context import SYNTHETIC
 from rrfrei.app.report import fmt
+from rrfrei.gap.report import verdict_text
 
 
 def pct(x: float) -> str:
@@ -137,8 +138,6 @@ def gap_reading(rep: Any, best: str) -> str:
         reading += (f" The residuals concentrate in the {top['axis']} segment '{top['segment']}' "
                     f"({pct(top['error_share'])} of the squared error, {fmt(top['rms_over_noise'], 3)} "
                     f"times the noise level).")
-    from rrfrei.gap.report import verdict_text
-
     reading += " " + verdict_text(rep)
     if rep.combination:
         winner = next(e for e in rep.ranking if e.effect == rep.combination[0])
@@ -202,8 +201,6 @@ def shake_table_reading(res: Any, *, quick: bool) -> str:
         f"{res.identified_on}; {', '.join(res.holdout)} takes the isolators to {fmt(ratio, 3)} times the "
         f"largest calibrated displacement ({fmt(res.calibrated_peak, 3)} m)."
     )
-    from rrfrei.gap.report import verdict_text
-
     text += " On the isolation tests: " + verdict_text(rep)
     if res.holdout:
         hb, ha = res.gap_before["holdout"], res.gap_after["holdout"]
