@@ -9,8 +9,8 @@ from rrfrei.app.demo import run_demo
 
 EXAMPLE = """\
 Example:
-  rrfrei demo --out report --quick     # 24 s (73 s the first time: it compiles); open report/index.html
-  rrfrei demo --out report --seed 3    # the full run (about 50 s on 2 cores once compiled)
+  rrfrei demo --out report --quick     # about 1 minute once compiled; open report/index.html
+  rrfrei demo --out report --seed 3    # the full run (about 5 minutes on 2 cores once compiled)
 """
 
 
