@@ -131,7 +131,8 @@ def reading(res: ShakeTableGap) -> str:
                  f"isolator displacement over the calibrated peak ({res.calibrated_peak:.3f} m): {ext}"
                  + (" - the held-out runs go beyond the calibrated range, where only the law's form "
                     "governs." if any(r > 1 for r in res.extrapolation.values()) else "."))
-    lines.append("Diagnosis on the isolation tests (force from the measured displacement): " + verdict_text(rep))
+    lines.append("Diagnosis on the isolation tests (force from the measured displacement): "
+                 + verdict_text(rep))
     if res.holdout:
         sh = res.shrink()
         hb, ha = res.gap_before["holdout"], res.gap_after["holdout"]

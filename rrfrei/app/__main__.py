@@ -4,4 +4,5 @@ import sys
 
 from rrfrei.app.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # guarded: spawned / forkserver workers import this module as __mp_main__
+    sys.exit(main())

@@ -2,8 +2,9 @@
 
 Every case (:class:`.cases.Case`) is made into its tests and diagnosed by
 :func:`rrfrei.gap.diagnose_gap` (calibrate on protocol 1, hold out 2-4, the effect withheld).
-Cases run in ``workers`` processes (:class:`concurrent.futures.ProcessPoolExecutor`, forked where
-the platform can, so each process starts with the kernels already loaded), with a tqdm bar, a wall-clock
+Cases run in ``workers`` processes (:class:`concurrent.futures.ProcessPoolExecutor`, started by a
+fork server where the platform has one: a fork of a process using OpenMP threads is unsafe),
+with a tqdm bar, a wall-clock
 budget for the whole table (cases not started when it runs out are listed as not run) and one for
 each diagnosis, and a checkpoint: every finished case is appended to a JSON-lines file with the
 settings it ran with, and a rerun with the same file and settings skips it.
@@ -258,9 +259,11 @@ def run_table(
             else:
                 import multiprocessing as mp
 
-                # fork where there is one: the workers inherit the loaded kernels, and a spawned
-                # worker would re-run the main module (``python -m rrfrei.app`` has no main guard)
-                method = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
+                # forkserver where there is one: fork() from a process whose Numba kernels already
+                # run on GNU OpenMP threads kills the child ("fork() called from a process already
+                # using GNU OpenMP, this is unsafe": the slow tier after other tests); the server is
+                # a fresh process, and the workers load the compiled kernels from the cache
+                method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
                 with ProcessPoolExecutor(
                     max_workers=workers, mp_context=mp.get_context(method), initializer=_init_worker
                 ) as pool:
