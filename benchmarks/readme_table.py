@@ -40,6 +40,7 @@ def table(h: dict) -> str:
     laws, th, cal = h.get("bench_laws", {}), h.get("bench_time_history", {}), h.get("bench_calibration", {})
     prop, sp, rub = h.get("bench_propagation", {}), h.get("spectra", {}), h.get("bench_rubber", {})
     gap = h.get("bench_gap", {})
+    st = h.get("bench_shake_table", {}).get("shake_table", {})
     rows = []
 
     def row(what, ours, peer, ratio, multi="", target=""):
@@ -92,6 +93,10 @@ def table(h: dict) -> str:
         gap_text = MISSING
     row("whole gap diagnosis (every catalogue effect, 3 held-out tests)", "", "", "",
         gap_text + " on every core", "<= 60 s warm")
+    st_text = (f"{st['warm_s']:.0f} s warm, {st['cold_s']:.0f} s with an empty Numba cache"
+               if "warm_s" in st and "cold_s" in st else MISSING)
+    row("whole `rrfrei shake-table` command, four BNCS runs", "", "", "", st_text + " on 2 cores",
+        "<= 3 min warm")
     head = [
         "## Speed (ratios against the peer, measured in the same run)",
         "",
