@@ -70,7 +70,15 @@ from rrfrei.budget import progress as progress_bar
 from rrfrei.calibration.checks import nrmse
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap.diagnose import GapReport, _Checkpoint, _loco, diagnose
-from rrfrei.gap.model import LEVEL, FitResult, GapModel, IsolatorFit, IsolatorModel, Prediction
+from rrfrei.gap.model import (
+    LEVEL,
+    FitResult,
+    GapModel,
+    IsolatorFit,
+    IsolatorModel,
+    Prediction,
+    gaussian_loglik,
+)
 from rrfrei.io import ShearTest, concat_tests
 from rrfrei.laws.specialise import history
 from structures.building import Isolator, ShearBuilding
@@ -213,10 +221,7 @@ class CarriedFit(FitResult):
         return pred
 
     def loglik(self, data) -> np.ndarray:
-        pred = self.predict(data)
-        r = np.asarray(data.force)[None, :] - pred.draws
-        s = pred.sigma[:, None]
-        return -0.5 * (r / s) ** 2 - np.log(s) - 0.5 * math.log(2 * math.pi)
+        return gaussian_loglik(data.force, self.predict(data))
 
 
 class CarriedIsolatorModel(GapModel):

@@ -52,8 +52,8 @@ from rrfrei.io import ShearTest, concat_tests
 from rrfrei.laws import LawSpec, get
 from rrfrei.laws.specialise import history
 
-__all__ = ["GapModel", "FitResult", "Prediction", "IsolatorModel", "IsolatorFit", "white_noise",
-           "test_scales"]
+__all__ = ["GapModel", "FitResult", "Prediction", "IsolatorModel", "IsolatorFit", "gaussian_loglik",
+           "white_noise", "test_scales"]
 
 LEVEL = 0.95
 GLOBAL_EVALS = 300
@@ -124,6 +124,14 @@ class GapModel(ABC):
 
 
 # ---------------------------------------------------------------------------------------------
+def gaussian_loglik(observed, pred: Prediction) -> np.ndarray:
+    """Pointwise log-likelihood (S, n) of ``observed`` (n,) under each draw of ``pred``:
+    ``N(observed | draws[s], sigma[s]^2)``."""
+    r = np.asarray(observed, dtype=float)[None, :] - pred.draws
+    s = pred.sigma[:, None]
+    return -0.5 * (r / s) ** 2 - np.log(s) - 0.5 * math.log(2 * math.pi)
+
+
 def white_noise(resid: np.ndarray) -> float:
     """White-noise sd of a residual series from its successive differences (robust MAD)."""
     d = np.diff(np.asarray(resid, dtype=float))
@@ -236,10 +244,7 @@ class IsolatorFit(FitResult):
         return pred
 
     def loglik(self, data: ShearTest) -> np.ndarray:
-        pred = self.predict(data)
-        r = np.asarray(data.force)[None, :] - pred.draws
-        s = pred.sigma[:, None]
-        return -0.5 * (r / s) ** 2 - np.log(s) - 0.5 * math.log(2 * math.pi)
+        return gaussian_loglik(data.force, self.predict(data))
 
 
 class IsolatorModel(GapModel):
