@@ -77,10 +77,10 @@ from rrfrei.gap.model import (
     IsolatorFit,
     IsolatorModel,
     Prediction,
+    _simulate,
     gaussian_loglik,
 )
 from rrfrei.io import ShearTest, concat_tests
-from rrfrei.laws.specialise import history
 from structures.building import Isolator, ShearBuilding
 from structures.history import ConvergenceError, time_history
 from structures.identify import identify_superstructure
@@ -131,23 +131,16 @@ def simulate_law(spec, p: np.ndarray, test: ShearTest) -> tuple[int, np.ndarray]
     through its ``preceding`` tests (:meth:`rrfrei.io.ShearTest.after`: the state they leave is
     carried in); a failing local solve is retried with :data:`SUBSTEPS` sub-increments per sample.
     Returns (status, force): status 0 on success."""
-    n = len(test)
-    if test.preceding:
-        test = concat_tests([*test.preceding, test], name=test.name)
-    drive = history(spec)
     F = np.empty(len(test))
-    T = np.empty(len(test))
     status = -99
     for sub in SUBSTEPS:
-        sc = np.array(spec.initial_state, dtype=float)
         try:
-            status, _ = drive(p, sc, sc.copy(), test.disp, test.time, bool(test.has_time), sub, F, T)
+            status, _ = _simulate(spec, p, test, F, substeps=sub)
         except NUMERICAL_ERRORS:
             status = -98
-        status = int(status)
         if status == 0 and np.all(np.isfinite(F)):
-            return 0, F[len(test) - n:]
-    return status if status != 0 else -3, F[len(test) - n:]
+            return 0, F
+    return status if status != 0 else -3, F
 
 
 # ---------------------------------------------------------------------------------------------

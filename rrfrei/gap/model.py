@@ -172,8 +172,9 @@ def _history_of(test: ShearTest) -> ShearTest:
 
 
 def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
-              out: np.ndarray | None = None) -> tuple[int, np.ndarray]:
-    """Force [kN] of ``test``'s samples, and the driver's status.
+              out: np.ndarray | None = None, substeps: int = 1) -> tuple[int, np.ndarray]:
+    """Force [kN] of ``test``'s samples, and the driver's status (``substeps`` sub-increments of
+    the law per sample; 1: the sample steps themselves).
 
     When the test has ``preceding`` tests (:meth:`rrfrei.io.ShearTest.after`) the law is driven
     through them first, along their concatenation with the test (:func:`rrfrei.io.concat_tests`:
@@ -185,12 +186,14 @@ def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
     sc = np.array(spec.initial_state, dtype=float)
     if not test.preceding:
         T = np.empty(n)
-        status, _ = history(spec)(p, sc, sc.copy(), test.disp, test.time, bool(test.has_time), 1, F, T)
+        status, _ = history(spec)(p, sc, sc.copy(), test.disp, test.time, bool(test.has_time), substeps,
+                                  F, T)
         return int(status), F
     full = _history_of(test)
     Ff = np.empty(len(full))
     T = np.empty(len(full))
-    status, _ = history(spec)(p, sc, sc.copy(), full.disp, full.time, bool(full.has_time), 1, Ff, T)
+    status, _ = history(spec)(p, sc, sc.copy(), full.disp, full.time, bool(full.has_time), substeps,
+                              Ff, T)
     F[:] = Ff[len(full) - n:]
     return int(status), F
 
