@@ -111,6 +111,9 @@ def simulate_force(
     disp : displacement history [m]; the law starts virgin at zero displacement.
     time : sample times [s], strictly increasing; needed only by velocity-dependent terms.
         Without it the history is quasi-static (velocity 0, dt = 1 as in OpenSees statics).
+        An (n, 2) array is a two-component path in plan [m]: the law's coupled
+        bidirectional form (:mod:`rrfrei.laws.plan`, OpenSees' 3-D bearing shear behaviour)
+        returns (n, 2) forces [kN] and, with ``return_tangent``, (n, 2, 2) tangents [kN/m].
     substeps : 1 reproduces OpenSees (one implicit update per increment, so the result depends on
         the sampling); n > 1 splits every increment into n equal parts for a step-size-converged
         answer.
@@ -137,26 +140,15 @@ def simulate_force(
     LocalSolverDeviation
         ``local_solver="robust"`` acted at some samples (count and first indices named).
     """
+    if np.ndim(disp) == 2:
+        return _simulate_plan(law, params, disp, time=time, substeps=substeps,
+                              return_tangent=return_tangent, local_solver=local_solver)
     spec = get(law)
     p = spec.pack(params)
     robust = robust_local_solve(spec, local_solver)
     u = as_history(disp, "disp")
-    if not isinstance(substeps, (int, np.integer)) or substeps < 1:
-        raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
-    if time is None:
-        t = np.zeros_like(u)
-        use_time = False
-    else:
-        t = as_history(time, "time")
-        if t.size != u.size:
-            raise ValueError(f"time has {t.size} values but disp has {u.size}")
-        dt = np.diff(t)
-        if np.any(dt <= 0):
-            i = int(np.flatnonzero(dt <= 0)[0])
-            raise ValueError(
-                f"time must be strictly increasing; time[{i + 1}] = {t[i + 1]} <= time[{i}] = {t[i]}"
-            )
-        use_time = True
+    _check_substeps(substeps)
+    t, use_time = _time_of(time, u.size)
     force = np.empty_like(u)
     tangent = np.empty_like(u)
     sc = np.array(spec.initial_state, dtype=float)
@@ -178,4 +170,72 @@ def simulate_force(
         )
     if deviated is not None and deviated.any():
         warnings.warn(deviation_warning(spec.name, np.flatnonzero(deviated)), stacklevel=2)
+    return (force, tangent) if return_tangent else force
+
+
+def _check_substeps(substeps) -> None:
+    if not isinstance(substeps, (int, np.integer)) or substeps < 1:
+        raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+
+
+def _time_of(time, n: int) -> tuple[np.ndarray, bool]:
+    """(time array, use_time) after validating ``time`` against ``n`` samples."""
+    if time is None:
+        return np.zeros(n), False
+    t = as_history(time, "time")
+    if t.size != n:
+        raise ValueError(f"time has {t.size} values but disp has {n}")
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        i = int(np.flatnonzero(dt <= 0)[0])
+        raise ValueError(
+            f"time must be strictly increasing; time[{i + 1}] = {t[i + 1]} <= time[{i}] = {t[i]}"
+        )
+    return t, True
+
+
+def as_plan_history(values, name: str = "disp") -> np.ndarray:
+    """A finite (n, 2) float64 array (n >= 1), or ValueError naming ``name``, the sample and the
+    value."""
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an (n, 2) array of numbers, got {type(values).__name__}") from None
+    if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 1:
+        raise ValueError(f"{name} must be an (n, 2) array (x, y per sample) [m], got shape {arr.shape}")
+    bad = np.argwhere(~np.isfinite(arr))
+    if bad.size:
+        i, a = bad[0]
+        raise ValueError(f"{name} is not finite at sample {i}, component {'xy'[a]} (value {arr[i, a]})")
+    return np.ascontiguousarray(arr)
+
+
+def _simulate_plan(law, params, disp, *, time, substeps, return_tangent, local_solver):
+    """:func:`simulate_force` on an (n, 2) path: the law's coupled bidirectional form."""
+    from rrfrei.laws import plan
+
+    pspec = plan.get(law)
+    spec = pspec.law
+    p = spec.pack(params)
+    if robust_local_solve(spec, local_solver) and spec.local_iteration:
+        raise ValueError(
+            f"local_solver = 'robust' is not available for the bidirectional form of law "
+            f"{spec.name!r}; use local_solver='opensees'"
+        )
+    u = as_plan_history(disp, "disp")
+    _check_substeps(substeps)
+    t, use_time = _time_of(time, u.shape[0])
+    force = np.empty_like(u)
+    tangent = np.empty((u.shape[0], 2, 2))
+    sc = np.array(pspec.initial_state, dtype=float)
+    st = sc.copy()
+    status, idx = plan.driver(pspec)(p, sc, st, u, t, use_time, int(substeps), force, tangent)
+    if status != 0:
+        raise NumericalFailure(
+            f"bidirectional law {spec.name!r} failed at sample {idx} (disp = "
+            f"({u[idx, 0]:.6g}, {u[idx, 1]:.6g}) m): "
+            f"{STATUS_MESSAGES.get(int(status), f'status {status}')}; committed state "
+            f"{np.array2string(sc, precision=6)}, failed trial state "
+            f"{np.array2string(st, precision=6)}; parameters {spec.as_dict(p)}"
+        )
     return (force, tangent) if return_tangent else force

@@ -1,0 +1,142 @@
+"""Registry of the coupled bidirectional (plan) laws: one entry per law, keyed by the name of
+its unidirectional law (:mod:`rrfrei.laws.registry`), whose parameters it shares.
+
+Kernel contract
+---------------
+Every plan law provides a Numba step kernel (``PlanLawSpec.step``)::
+
+    step(p, sc, u, v, dt, st, f, k) -> status
+
+* ``p``   float64 array of the law's parameters, in the unidirectional law's
+  ``LawSpec.param_names`` order (kN, m, s);
+* ``sc``  committed state (read only), float64 array of length ``PlanLawSpec.state_size``;
+* ``u``   (2,) trial shear displacements [m] along the two horizontal axes (x, y);
+* ``v``   (2,) trial shear velocities [m/s] (0 under static displacement control);
+* ``dt``  time step since the last commit [s] (1.0 under static control, as in OpenSees);
+* ``st``  trial state: on entry the previous trial, on exit the new trial state;
+* ``f``   (2,) output: shear forces [kN];
+* ``k``   (2, 2) output: tangent dF_i/du_j [kN/m];
+* returns a status, 0 = converged, < 0 = failure (:data:`rrfrei.laws.STATUS_MESSAGES`).
+
+A driver commits by copying ``st`` into ``sc`` once a step has converged.  Kernels that call a
+plan law (the history driver :mod:`rrfrei.laws.plan._history`, the plan building's Newmark
+integrator) are templates instantiated per law (:mod:`rrfrei.laws.specialise`) with the slot
+``plan_step`` bound to ``PlanLawSpec.step``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rrfrei.laws import registry as _laws
+
+
+@dataclass(frozen=True)
+class PlanLawSpec:
+    """A coupled bidirectional law.
+
+    Attributes
+    ----------
+    name : the unidirectional law's name (``rrfrei.laws.get(name)`` gives the parameters).
+    step : the jitted step kernel (contract in the module docstring).
+    state_size : length of the state vector.
+    description : one line, with the OpenSees source it ports.
+    opensees_element : the openseespy 3-D element command it matches ("" for none).
+    initial_state : the virgin state (zeros when not given).
+    """
+
+    name: str
+    step: Callable = field(compare=False, repr=False)
+    state_size: int
+    description: str
+    opensees_element: str = ""
+    initial_state: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.initial_state is None:
+            object.__setattr__(self, "initial_state", np.zeros(self.state_size))
+        init = np.asarray(self.initial_state, dtype=float)
+        if init.shape != (self.state_size,):
+            raise ValueError(
+                f"plan law {self.name!r}: initial_state has shape {init.shape}, expected "
+                f"({self.state_size},)"
+            )
+        object.__setattr__(self, "initial_state", init)
+
+    @property
+    def law(self) -> _laws.LawSpec:
+        """The unidirectional law: parameter names, units, bounds, priors, ``pack``."""
+        return _laws.get(self.name)
+
+
+_REGISTRY: dict[str, PlanLawSpec] = {}
+_DISCOVERED = False
+
+
+def register(spec: PlanLawSpec) -> PlanLawSpec:
+    """Add a plan law to the registry (one per unidirectional law name)."""
+    if spec.name in _REGISTRY and _REGISTRY[spec.name] is not spec:
+        raise ValueError(f"a plan law named {spec.name!r} is already registered")
+    _REGISTRY[spec.name] = spec
+    return spec
+
+
+def _discover() -> None:
+    global _DISCOVERED
+    if _DISCOVERED:
+        return
+    _DISCOVERED = True
+    import rrfrei.laws.plan as package
+
+    _laws.import_entries(package.__name__, package.__path__)
+
+
+def names() -> tuple[str, ...]:
+    """Names of the laws with a bidirectional form, in :func:`rrfrei.laws.names` order."""
+    _discover()
+    order = {n: i for i, n in enumerate(_laws.names())}
+    return tuple(sorted(_REGISTRY, key=lambda n: (order.get(n, len(order)), n)))
+
+
+def get(name: str | PlanLawSpec | _laws.LawSpec) -> PlanLawSpec:
+    """The plan law of ``name`` (a law name or its :class:`~rrfrei.laws.LawSpec`).
+
+    Raises ValueError for a law without a bidirectional form (e.g. an augmented law such as
+    ``bouc_wen+rate``: the gap effects are unidirectional), naming the laws that have one.
+    """
+    if isinstance(name, PlanLawSpec):
+        return name
+    key = name.name if isinstance(name, _laws.LawSpec) else name
+    if not isinstance(key, str):
+        raise ValueError(f"a law name must be a string, got {name!r}")
+    key = key.strip()
+    _discover()
+    if key in _REGISTRY:
+        return _REGISTRY[key]
+    raise ValueError(
+        f"law {key!r} has no coupled bidirectional form (an (n, 2) displacement history needs "
+        f"one); laws with a bidirectional form: {', '.join(names()) or '(none)'}"
+    )
+
+
+HISTORY = "rrfrei.laws.plan._history"
+"""The template of the plan laws' whole-history driver (:mod:`rrfrei.laws.plan._history`)."""
+
+_DRIVERS: dict[str, tuple[PlanLawSpec, Callable]] = {}
+
+
+def driver(spec: PlanLawSpec) -> Callable:
+    """The law's whole-history driver (jitted), the instance of :data:`HISTORY` bound to its
+    step: ``drive(p, sc, st, disp, time, use_time, substeps, force, tangent) -> (status, index)``.
+    """
+    from rrfrei.laws.specialise import instantiate
+
+    hit = _DRIVERS.get(spec.name)
+    if hit is not None and hit[0] is spec:
+        return hit[1]
+    drive = instantiate(HISTORY, {"plan_step": spec.step}, f"plan_{spec.name}").drive
+    _DRIVERS[spec.name] = (spec, drive)
+    return drive

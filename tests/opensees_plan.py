@@ -1,0 +1,85 @@
+"""Two-component displacement-control openseespy driver for the 3-D bearing elements.
+
+The plan counterpart of :mod:`tests.opensees_harness` (same analysis settings: Path series
+with ``-dt 1`` and one padding value, Plain patterns, Transformation constraints, Plain
+numberer, BandGeneral, NormDispIncr 1e-12, Newton, LoadControl 1.0, so analysis step k imposes
+sample k-1).  A zero-length 3-D element between a fixed node and a node whose global X and Y
+DOFs are imposed by ``sp(2, 1, 1.0)`` and ``sp(2, 2, 1.0)`` on two Path series; the vertical DOF
+(global Z, the element's local x) is free on an elastic axial material (ElastomericX and HDR:
+their own axial model), the rotations fixed.  The orientation ``-orient 0 0 1 1 0 0`` makes the
+element's local y the global X and its local z the global Y, so the basic shear deformations are
+``(u_X, u_Y)`` and the returned forces are node j's global ``(F_X, F_Y)`` (``eleResponse``
+components 6 and 7).  Law parameters are the rrfrei ones (kN, m).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tests.opensees_harness import AXIAL_K, _CaptureStderr, _element_args
+
+ORIENT = [0, 0, 1, 1, 0, 0]
+PLAN_LAWS = ("plasticity", "bouc_wen", "elastomeric_x", "hdr")
+
+
+def _plan_element_args(law: str, p: dict) -> list:
+    if law == "plasticity":
+        return ["elastomericBearingPlasticity", 1, 1, 2, p["k_init"], p["qd"], p["alpha1"],
+                p["alpha2"], p["mu"], "-P", 1, "-T", 2, "-My", 3, "-Mz", 4, "-orient", *ORIENT]
+    if law == "bouc_wen":
+        return ["elastomericBearingBoucWen", 1, 1, 2, p["k_init"], p["qd"], p["alpha1"],
+                p["alpha2"], p["mu"], p["eta"], p["beta"], p["gamma"], "-P", 1, "-T", 2,
+                "-My", 3, "-Mz", 4, "-orient", *ORIENT]
+    if law in ("elastomeric_x", "hdr"):
+        return _element_args(law, p)  # already 3-D, with this orientation
+    raise ValueError(f"no OpenSees 3-D element for law {law!r}")
+
+
+def _build(ops, law: str, params: dict, disp: np.ndarray) -> None:
+    ops.wipe()
+    ops.model("basic", "-ndm", 3, "-ndf", 6)
+    ops.node(1, 0.0, 0.0, 0.0)
+    ops.node(2, 0.0, 0.0, 0.0)
+    ops.fix(1, 1, 1, 1, 1, 1, 1)
+    ops.fix(2, 0, 0, 0, 1, 1, 1)
+    for tag in (1, 2, 3, 4):
+        ops.uniaxialMaterial("Elastic", tag, AXIAL_K)
+    ops.element(*_plan_element_args(law, params))
+    for a in (0, 1):
+        col = np.asarray(disp[:, a], dtype=float)
+        values = [0.0, *col.tolist(), float(col[-1])]
+        ops.timeSeries("Path", a + 1, "-dt", 1.0, "-values", *values)
+        ops.pattern("Plain", a + 1, a + 1)
+        ops.sp(2, a + 1, 1.0)
+    ops.constraints("Transformation")
+    ops.numberer("Plain")
+    ops.system("BandGeneral")
+    ops.test("NormDispIncr", 1e-12, 100)
+    ops.algorithm("Newton")
+    ops.integrator("LoadControl", 1.0)
+    ops.analysis("Static")
+
+
+def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int]:
+    """Shear forces (F_X, F_Y) [kN] of the OpenSees 3-D element along the (n, 2) path ``disp``
+    [m].
+
+    Returns ``(force, n_ok)``: ``force`` is (n, 2); ``n_ok < n`` when ``analyze`` failed at
+    sample ``n_ok`` (later rows NaN).
+    """
+    disp = np.asarray(disp, dtype=float)
+    if disp.ndim != 2 or disp.shape[1] != 2:
+        raise ValueError(f"disp must be (n, 2), got {disp.shape}")
+    _build(ops, law, params, disp)
+    out = np.full(disp.shape, np.nan)
+    n_ok = disp.shape[0]
+    with _CaptureStderr():
+        for k in range(disp.shape[0]):
+            if ops.analyze(1) != 0:
+                n_ok = k
+                break
+            r = ops.eleResponse(1, "force")
+            out[k, 0] = r[6]
+            out[k, 1] = r[7]
+        ops.wipe()
+    return out, n_ok
