@@ -8,12 +8,15 @@ recurrence is a Numba kernel over arrays (``spectra._nigam_jennings``).
 - :func:`response_spectrum` -> :class:`Spectrum` (Nigam-Jennings, Numba), :func:`sdof_response`,
   :func:`design_spectrum` (ASCE 7-22 two-period shape).
 - :func:`scale_to_pga`, :func:`scale_to_spectrum`; :func:`plot_record`, :func:`plot_spectra`.
+- Pairs of horizontal components (issue 14): :class:`RecordPair` (one clock, ``scaled``,
+  ``rotated``), :func:`read_pair`, :func:`load_pair` / :func:`available_pairs`.
 """
 
 import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
 
-from .catalogue import available, load
+from .catalogue import available, available_pairs, load, load_pair
 from .io import read
+from .pairs import RecordPair, read_pair
 from .plotting import plot_record, plot_spectra
 from .processing import baseline_correct, integrate
 from .record import G, Record
@@ -23,6 +26,7 @@ from .spectra import Spectrum, design_spectrum, response_spectrum, sdof_response
 __all__ = [
     "G",
     "Record",
+    "RecordPair",
     "Spectrum",
     "design_spectrum",
     "plot_record",
@@ -32,8 +36,11 @@ __all__ = [
     "scale_to_spectrum",
     "sdof_response",
     "available",
+    "available_pairs",
     "baseline_correct",
     "integrate",
     "load",
+    "load_pair",
     "read",
+    "read_pair",
 ]
