@@ -163,7 +163,6 @@ def plot_scaled_suite(suite, ax=None, *, units: str = "g"):
     if suite.fraction != 1.0:
         ax.plot(t, suite.fraction * suite.target * factor, "k:", lw=1.0, label=f"{suite.fraction:g} x target")
     ax.axvline(suite.governing_period, color="0.5", lw=0.8, ls="-.", label="governing period")
-    ax.set_xscale("log")
     ax.set_xlabel("Period T [s]")
     ax.set_ylabel(f"Pseudo-spectral acceleration [{ulabel}]")
     ax.set_title(
