@@ -158,6 +158,9 @@ def test_a_pair_refuses_different_steps_a_vertical_component_and_non_orthogonal_
         gm.RecordPair(a, gm.Record("c", 0.01, np.ones(10), {"component": "135"}))
     with pytest.raises(ValueError, match="first must be a ground_motions.Record"):
         gm.RecordPair(np.ones(10), a)
+    h1h2 = gm.RecordPair(gm.Record("r.H1", 0.01, np.ones(10), {"component": "H1"}),
+                         gm.Record("r.H2", 0.01, np.ones(10), {"component": "H2"}))
+    assert h1h2.azimuths == (None, None)  # numbered components: orientation unknown, still a pair
     unknown = gm.RecordPair(a, gm.Record("fn", 0.01, np.ones(10), {"component": "FN"}))
     assert unknown.azimuths == (180.0, None)
     assert unknown.rotated(10.0).azimuths == (None, None)
@@ -165,7 +168,8 @@ def test_a_pair_refuses_different_steps_a_vertical_component_and_non_orthogonal_
 
 @pytest.mark.parametrize(("label", "azimuth"), [
     ("180", 180.0), ("90 Deg", 90.0), ("360", 0.0), ("ELC270", 270.0), ("W", 270.0), ("N", 0.0),
-    ("E-W", 90.0), ("HNE", 90.0), ("FN", None), ("", None), ("L", None), ("999", None),
+    ("E-W", 90.0), ("HNE", 90.0), ("FN", None), ("", None), ("L", None), ("999", None), ("H1", None),
+    ("HN2", None), ("5", 5.0), ("LCN260", 260.0), ("BUR000", 0.0),
 ])
 def test_component_labels_name_azimuths_clockwise_from_north(label, azimuth):
     assert component_azimuth(label) == azimuth
