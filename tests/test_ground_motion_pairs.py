@@ -135,6 +135,22 @@ def test_rotated_component_1_is_the_ground_motion_along_its_new_azimuth():
     assert r.first.meta["component"] == "60 deg" and r.first.meta["rotated_deg"] == 30.0
 
 
+@settings(max_examples=40, deadline=None)
+@given(n1=st.integers(1, 60), n2=st.integers(1, 60))
+def test_components_of_different_lengths_keep_every_sample_and_end_in_zeros(n1, n2):
+    rng = np.random.default_rng(n1 * 61 + n2)
+    a, b = rng.normal(size=n1), rng.normal(size=n2)
+    p = gm.RecordPair(gm.Record("a", 0.02, a), gm.Record("b", 0.02, b))
+    n = max(n1, n2)
+    assert p.npts == n and p.npts_recorded == (n1, n2)
+    np.testing.assert_array_equal(p.accel[:n1, 0], a)
+    np.testing.assert_array_equal(p.accel[:n2, 1], b)
+    np.testing.assert_array_equal(p.accel[n1:, 0], 0.0)
+    np.testing.assert_array_equal(p.accel[n2:, 1], 0.0)
+    t = p.trimmed()
+    assert t.npts == min(n1, n2) and "padded" not in t.first.meta and "padded" not in t.second.meta
+
+
 def test_a_pair_starts_from_rest_and_resamples_both_components_on_one_clock():
     p = _pair()
     z = p.with_leading_zero()
