@@ -309,6 +309,44 @@ def test_elastomeric_x_tangent_counts_the_park_wen_rate_twice_on_oblique_increme
         sc[:] = st_
 
 
+def test_hdr_tangent_omits_the_turn_of_the_gap_as_opensees_does():
+    """HDR.cpp's "consistent" tangent holds Delta_C = |R_C n - F2_C| fixed although n turns
+    with U in plan (exact in 1-D, where n = +-1): the step's central-difference derivative
+    differs from it by O(1) on a random walk, and equals it once -mu (x) dDelta_C/dU / (1 + b3 dU)
+    is added (c4 = 0, so the element's dKM/dDM typo is silent)."""
+    p = dict(a1=60.0, a2=-2e4, a3=3e7, b1=0.8, b2=300.0, b3=150.0, c1=1e3, c2=2e3, c3=0.4, c4=0.0)
+    spec = plan.get("hdr")
+    pp = spec.law.pack(p)
+    sc = np.array(spec.initial_state)
+    st_ = sc.copy()
+    f, k, scratch = np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2))
+    worst_element, worst_completed = 0.0, 0.0
+    for u in np.cumsum(np.random.default_rng(3).normal(0.0, 0.01, (40, 2)), axis=0):
+        before = st_.copy()
+        assert spec.step(pp, sc, u, np.zeros(2), 1.0, st_, f, k) == 0
+        h = 1e-7 * max(1e-3, np.max(np.abs(u - sc[:2])))
+        fd = np.zeros((2, 2))
+        for j in range(2):
+            e = h * np.eye(2)[j]
+            fp, fm = np.zeros(2), np.zeros(2)
+            spec.step(pp, sc, u + e, np.zeros(2), 1.0, before.copy(), fp, scratch)
+            spec.step(pp, sc, u - e, np.zeros(2), 1.0, before.copy(), fm, scratch)
+            fd[:, j] = (fp - fm) / (2.0 * h)
+        du = np.linalg.norm(u - sc[:2])
+        n = (u - sc[:2]) / du
+        r_c = p["b1"] + math.exp(-p["c2"] * sc[6] ** 3) * p["b2"] * (sc[0] ** 2 + sc[1] ** 2)
+        gap = r_c * n - sc[2:4]
+        d_delta_c = gap / np.linalg.norm(gap) @ (r_c * (np.eye(2) - np.outer(n, n)) / du)
+        r = p["b1"] + math.exp(-p["c2"] * st_[6] ** 3) * p["b2"] * (u @ u)
+        mu = (r * n - sc[2:4]) / np.linalg.norm(r * n - sc[2:4])
+        completed = k - np.outer(mu, d_delta_c) / (1.0 + p["b3"] * du)
+        worst_element = max(worst_element, np.max(np.abs(fd - k)) / np.max(np.abs(fd)))
+        worst_completed = max(worst_completed, np.max(np.abs(fd - completed)) / np.max(np.abs(fd)))
+        sc[:] = st_
+    assert worst_element > 0.5
+    assert worst_completed < 1e-6
+
+
 # --- symmetry ---------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("law", LAWS)
