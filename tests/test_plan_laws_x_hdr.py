@@ -15,6 +15,7 @@ import math
 import re
 
 import numpy as np
+import opensees_plan
 import pytest
 from _law_strategies import elastomeric_x_params, hdr_params, histories, logu
 from hypothesis import HealthCheck, given, settings
@@ -246,6 +247,38 @@ def test_elastomeric_x_tangent_is_opensees_with_its_second_update(ops):
     np.testing.assert_array_equal(tangent, k_os)
     _, k_once = rrfrei.simulate_force("elastomeric_x", p, d, return_tangent=True)
     assert 0.0 < np.max(np.abs(k_once - k_os)) <= TANGENT_RTOL["elastomeric_x"] * np.max(np.abs(k_os))
+
+
+# positions in the element argument lists (tests/opensees_harness.py) of the vertical, torsional
+# and rotational constants (tags 1-4 of ElastomericX stay 0: the law assumes the defaults)
+VERTICAL = {
+    "elastomeric_x": {7: 4.0e6, 10: 0.003, 19: 3.0, 20: 0.2, 21: 2.0, 22: 0.3},  # Kbulk ts kc PhiM ac sD
+    "hdr": {4: 900.0, 5: 4.0e6, 6: 0.05, 7: 0.5, 8: 0.003, 9: 0.008, 10: 12.0, 27: 3.0, 28: 0.2,
+            29: 2.0, 30: 0.3},  # Gr Kbulk D1 D2 ts tr n kc PhiM ac sD
+}
+
+
+@pytest.mark.opensees
+@pytest.mark.parametrize("law", LAWS)
+def test_the_harness_vertical_constants_do_not_enter_the_shear_law(ops, law, monkeypatch):
+    """Other rubber bulk modulus, shims, cavitation, damage and shear-distance constants (and
+    HDR's geometry, which sets only its vertical terms) leave OpenSees' shear forces unchanged,
+    also on an orbit wider than HDR's diameter (acos(|U|/D2) is NaN there, unused)."""
+    d = circle(0.4, 60, 2, ramp=8)
+    f_os, n_ok, _ = opensees_force(ops, law, FIXED[law], d)
+    assert n_ok == len(d)
+    plain = opensees_plan._plan_element_args
+
+    def other_vertical(law_, p):
+        args = plain(law_, p)
+        for i, value in VERTICAL[law_].items():
+            args[i] = value
+        return args
+
+    monkeypatch.setattr(opensees_plan, "_plan_element_args", other_vertical)
+    f_other, _, _ = opensees_force(ops, law, FIXED[law], d)
+    np.testing.assert_array_equal(f_other, f_os)
+    check_against_opensees(ops, law, FIXED[law], d)
 
 
 @pytest.mark.opensees
