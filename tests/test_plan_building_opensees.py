@@ -74,3 +74,14 @@ def test_different_stories_per_direction_and_rayleigh_damping_match_openseespy(o
     ours = structures.plan_time_history(bx, None, None, ag, dt=dt, building_y=by)
     peer = plan_building(ops, bx, ag, dt, building_y=by)
     assert_matches(ours, peer)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("law", HERE)
+def test_the_whole_ferndale_pair_matches_openseespy(ops, law):
+    """All 101 s of both components on the five-story building: no drift between the two."""
+    ag, dt = ferndale_pair(101.0, start=0.0)
+    bld = on_law(law, "five_story")
+    ours = structures.plan_time_history(bld, None, None, ag, dt=dt)
+    peer = plan_building(ops, bld, ag, dt)
+    assert_matches(ours, peer)
