@@ -10,8 +10,9 @@ The 3-D counterpart of :mod:`tests.opensees_dynamic` (same analysis settings):
   local z = global Y), its parameters mapped to the prototype by similitude
   (:func:`tests.opensees_dynamic.prototype_params`): ``elastomericBearingPlasticity`` /
   ``elastomericBearingBoucWen``, and ``ElastomericX`` / ``HDR`` exactly as the unidirectional peer
-  builds them (:func:`tests.opensees_dynamic._isolator`; vertical DOF fixed); the ``linear`` law as a zeroLength element with an elastic
-  material in X and one in Y (``count length_scale k`` each);
+  builds them (:func:`tests.opensees_dynamic._isolator`; vertical DOF fixed); the ``linear``
+  law as a zeroLength element with an elastic material in X and one in Y (``count length_scale
+  k`` each);
 * story springs and dashpots as zeroLength elements with ``uniaxialMaterial Elastic k eta=c`` in
   dirs 1 and 2 (the x stories from ``building``, the y stories from ``building_y``); Rayleigh's
   mass term as zeroLength dashpots to the ground;
