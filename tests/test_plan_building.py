@@ -290,6 +290,8 @@ def test_the_batch_gives_the_single_runs_peaks():
         (np.array([[0.0, 0.0], [0.1, np.nan], [0.0, 0.0]]), 0.01, r"accel\[1, 1\].*component y"),
         ("elcentro", 0.01, "ground must be"),
         (Pair("p", 0.01, np.zeros((5, 2))), 0.02, "dt = 0.02"),
+        (np.zeros((10, 2)), "fast", "dt = 'fast'"),
+        (ground_motions.Record("one", 0.01, np.zeros(10)), None, "one component: use structures.time_hi"),
     ],
 )
 def test_bad_ground_is_refused_naming_the_problem(ground, dt, words):
