@@ -1,8 +1,8 @@
 """A shear building in plan on coupled isolators (issue 14 point 2).
 
 * a record along one axis gives the unidirectional ``time_history`` in that axis and rest in the
-  other (1e-12, in fact bit for bit) for every plan law whose plan form reduces to its
-  unidirectional law along an axis;
+  other (1e-12, in fact bit for bit, for every plan law that reduces to its unidirectional law
+  bit for bit along an axis; bouc_wen to rounding, see AXIS_RTOL);
 * an isotropic layer under a record along any azimuth moves along that azimuth as the
   unidirectional building does, and a rotated pair gives the rotated response;
 * a linear layer superposes the two directions; a coupled nonlinear one does not;
@@ -33,6 +33,12 @@ PARAMS = {"linear": {"k": 300.0, "c": 0.0}, "toy_bilinear": TOY, **SPECIMEN_PARA
 # laws checked against the unidirectional building: those with a plan form here
 AXIS_LAWS = tuple(n for n in ("linear", "toy_bilinear", "plasticity", "bouc_wen", "elastomeric_x", "hdr")
                   if n in plan_laws.names())
+# Along one axis every plan law here is its unidirectional law bit for bit, and the plan
+# building the unidirectional building bit for bit (asserted to 1e-12), except bouc_wen: its
+# plan law's 2 x 2 local Newton rounds differently from the scalar one (1e-16 of the force per
+# step, rrfrei/laws/plan/bouc_wen.py), which the dynamics carry to up to 1.3e-12 in floor
+# accelerations (hypothesis buildings; 1e-13 on the example buildings).
+AXIS_RTOL = {"bouc_wen": 1e-10}
 
 
 def first_seconds(name: str, seconds: float, channel: int | None = None) -> ground_motions.Record:
@@ -99,7 +105,7 @@ def test_a_record_along_one_axis_is_the_unidirectional_building(law, axis):
     ours = structures.plan_time_history(bld, None, None, ground, dt=rec.dt)
     assert np.max(np.abs(ref.isolator_disp)) > 0.03  # a nonlinear excursion, not a trickle
     along, across = (ours.x, ours.y) if axis == 0 else (ours.y, ours.x)
-    assert_same_response(along, ref, 1e-12)
+    assert_same_response(along, ref, AXIS_RTOL.get(law, 1e-12))
     assert_at_rest(across)
     assert rel(ours.isolator_plan_disp, np.abs(ref.isolator_disp)) <= 1e-12
     assert ours.isolator_plan_disp_max == pytest.approx(np.max(np.abs(ref.isolator_disp)), rel=1e-12)
@@ -127,7 +133,7 @@ def test_any_building_under_a_one_axis_record_is_the_unidirectional_building(bld
     ground[:, axis] = rec.accel
     ours = structures.plan_time_history(bld, None, None, ground, dt=rec.dt)
     along, across = (ours.x, ours.y) if axis == 0 else (ours.y, ours.x)
-    assert_same_response(along, ref, 1e-12)
+    assert_same_response(along, ref, AXIS_RTOL.get(bld.isolator.law, 1e-12))
     assert_at_rest(across)
 
 
