@@ -215,14 +215,19 @@ def test_a_linear_layer_superposes_the_two_directions():
         assert_same_response(r, ref, 1e-12)
 
 
-def test_a_coupled_layer_does_not_superpose_the_two_directions():
-    """The radial toy softens on |u|: two components push it beyond d_b together, so each axis
-    sees a softer layer than its own unidirectional analysis (by far more than rounding)."""
-    ag, dt = ferndale_pair(8.0)
-    bld = on_law("toy_bilinear")
+@pytest.mark.parametrize("law", AXIS_LAWS[1:])
+def test_a_coupled_layer_is_not_two_independent_unidirectional_analyses(law):
+    """Nonlinear coupled layers: the peak plan displacement of the plan analysis differs from
+    the vector sum of two unidirectional analyses (one per component) by far more than rounding:
+    3 to 10 % on the Ferndale pair (a circular yield surface yields earlier on a diagonal; the
+    radial toy softens on |u|)."""
+    ag, dt = ferndale_pair(10.0)
+    bld = on_law(law)
     ours = structures.plan_time_history(bld, None, None, ag, dt=dt)
-    ref_x = structures.time_history(bld, ground_motions.Record("x", dt, ag[:, 0]))
-    assert rel(ours.x.isolator_disp, ref_x.isolator_disp) > 1e-2
+    rx, ry = (structures.time_history(bld, ground_motions.Record(c, dt, ag[:, i]))
+              for i, c in enumerate("xy"))
+    independent = np.max(np.hypot(rx.isolator_disp, ry.isolator_disp))
+    assert abs(ours.isolator_plan_disp_max / independent - 1.0) > 0.02
 
 
 # --------------------------------------------------------------------- energy
