@@ -186,9 +186,14 @@ def _plan_ground(ground, dt) -> tuple[str, np.ndarray, float]:
             f"ground {name!r}: accel[{i}, {a}] = {float(acc[i, a])!r} (component {DIRECTIONS[a]}, "
             f"t = {i * rdt:g} s) is not finite"
         )
-    if step is None or float(step) == rdt:
+    if step is None:
         return name, np.ascontiguousarray(acc), rdt
-    h = float(step)
+    try:
+        h = float(step)
+    except (TypeError, ValueError):
+        h = float("nan")
+    if h == rdt:
+        return name, np.ascontiguousarray(acc), rdt
     if not (np.isfinite(h) and 0.0 < h <= rdt):
         raise ValueError(
             f"dt = {step!r} is invalid for ground {name!r}: expected 0 < dt <= the record step {rdt:g} s "

@@ -330,6 +330,7 @@ def test_the_batch_gives_the_single_runs_peaks():
         ("elcentro", 0.01, "ground must be"),
         (Pair("p", 0.01, np.zeros((5, 2))), 0.02, "dt = 0.02"),
         (np.zeros((10, 2)), "fast", "dt = 'fast'"),
+        (Pair("p", 0.01, np.zeros((5, 2))), "fast", "dt = 'fast' is invalid for ground 'p'"),
         (ground_motions.Record("one", 0.01, np.zeros(10)), None, "one component: use structures.time_hi"),
     ],
 )
