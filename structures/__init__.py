@@ -3,7 +3,10 @@
 Layers: :mod:`structures.newmark` is the Numba kernel template (Newmark + Newton over a chain
 condensed onto the isolator, instantiated per isolator law), :mod:`structures.newmark_records`
 its named inputs and outputs, :mod:`structures.history` the public verbs :func:`time_history` /
-:func:`time_history_batch`; :mod:`structures.building` the frozen models
+:func:`time_history_batch`; :mod:`structures.plan_newmark` / :mod:`structures.plan_history` the
+same in plan (two horizontal directions on a coupled isolator law, no torsion:
+:func:`plan_time_history`, :func:`plan_time_history_batch`, :class:`PlanResponse`, energy in
+:mod:`structures.plan_energy`); :mod:`structures.building` the frozen models
 (:class:`ShearBuilding`, :class:`Isolator`) with modal analysis and TOML loading;
 :mod:`structures.energy` the energy balance; :mod:`structures.propagate` posterior propagation
 (its inputs, executors, store, response set and plots in modules of those names).
@@ -20,6 +23,11 @@ import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sour
 from structures.building import Isolator, ShearBuilding, available_buildings, load_building
 from structures.history import ConvergenceError, Response, time_history, time_history_batch
 from structures.identify import SuperstructureIdentification, identify_superstructure  # noqa: F401
+from structures.plan_history import (  # noqa: F401  (plan building, issue 14)
+    PlanResponse,
+    plan_time_history,
+    plan_time_history_batch,
+)
 from structures.predict import RunPrediction, predict_run  # noqa: F401
 from structures.propagate import ResponseSet, SpectrumScaling, propagate  # noqa: F401  (propagation API)
 from structures.shake_table import (  # noqa: F401  (shake-table runs)
@@ -36,9 +44,12 @@ __all__ = [
     "ConvergenceError",
     "Isolator",
     "Response",
+    "PlanResponse",
     "ShearBuilding",
     "available_buildings",
     "load_building",
+    "plan_time_history",
+    "plan_time_history_batch",
     "time_history",
     "time_history_batch",
 ]
