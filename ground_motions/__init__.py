@@ -8,32 +8,43 @@ recurrence is a Numba kernel over arrays (``spectra._nigam_jennings``).
 - :func:`response_spectrum` -> :class:`Spectrum` (Nigam-Jennings, Numba), :func:`sdof_response`,
   :func:`design_spectrum` (ASCE 7-22 two-period shape).
 - :func:`scale_to_pga`, :func:`scale_to_spectrum`; :func:`plot_record`, :func:`plot_spectra`.
+- Pairs of horizontal components (issue 14): :class:`RecordPair` (one clock, ``scaled``,
+  ``rotated``), :func:`read_pair`, :func:`load_pair` / :func:`available_pairs`;
+  :func:`rotd_spectrum` -> :class:`RotDSpectrum` (RotD50/RotD100, Boore 2010, Numba).
 """
 
 import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
 
-from .catalogue import available, load
+from .catalogue import available, available_pairs, load, load_pair
 from .io import read
+from .pairs import RecordPair, read_pair
 from .plotting import plot_record, plot_spectra
 from .processing import baseline_correct, integrate
 from .record import G, Record
+from .rotd import RotDSpectrum, rotd_spectrum
 from .scaling import scale_to_pga, scale_to_spectrum
 from .spectra import Spectrum, design_spectrum, response_spectrum, sdof_response
 
 __all__ = [
     "G",
     "Record",
+    "RecordPair",
+    "RotDSpectrum",
     "Spectrum",
     "design_spectrum",
     "plot_record",
     "plot_spectra",
     "response_spectrum",
+    "rotd_spectrum",
     "scale_to_pga",
     "scale_to_spectrum",
     "sdof_response",
     "available",
+    "available_pairs",
     "baseline_correct",
     "integrate",
     "load",
+    "load_pair",
     "read",
+    "read_pair",
 ]

@@ -13,6 +13,7 @@ from importlib import resources
 from pathlib import Path
 
 from .io import read
+from .pairs import RecordPair
 from .processing import baseline_correct
 from .record import Record
 
@@ -24,6 +25,8 @@ class _Entry:
     uncorrected: bool = False
     event: str = ""
     station: str = ""
+    #: The two horizontal channels (component 1, component 2) of a three-channel file.
+    pair: tuple[int, int] | None = None
 
 
 #: Short name -> file (and reading options). Order is the order of ``available()``.
@@ -71,17 +74,20 @@ _CATALOGUE: dict[str, _Entry] = {
     ),
     "santamonica": _Entry(
         "S_MONICA.V2",
+        pair=(1, 3),  # 90 deg, 360 deg (channel 2 is UP)
         event="Northridge, 1994-01-17, M6.7",
         station="Santa Monica City Hall Grounds, CSMIP 24538",
     ),
     "ferndale": _Entry(
         "ce89486SampleInput.v2",
+        pair=(1, 2),  # 180 deg, 90 deg (channel 3 is Up)
         event="Ferndale (offshore Cape Mendocino), 2022-12-20, M6.4",
         station="Fortuna - 701 S. Fortuna Blvd, CGS 89486",
     ),
     "ridgecrest": _Entry(
         "CICCC.RAW",
         uncorrected=True,
+        pair=(1, 2),  # 90 deg, 360 deg (channel 3 is Up)
         event="Ridgecrest, 2019-07-06, M7.1",
         station="China Lake NWC - Christmas Canyon Rd (CI.CCC)",
     ),
@@ -96,6 +102,11 @@ RIDGECREST_CORRECTION = {"pre_event": 10.0, "highpass": 0.05, "order": 6}
 def available() -> tuple[str, ...]:
     """Short names of the bundled records."""
     return tuple(_CATALOGUE)
+
+
+def available_pairs() -> tuple[str, ...]:
+    """Short names of the bundled records that carry both horizontal components."""
+    return tuple(k for k, e in _CATALOGUE.items() if e.pair is not None)
 
 
 def path(name: str) -> Path:
@@ -152,3 +163,33 @@ def _load(key: str, channel: int | None, corrected: bool) -> Record:
             rec = baseline_correct(rec, **RIDGECREST_CORRECTION)
         return rec
     return Record(label, rec.dt, rec.accel, meta)
+
+
+def load_pair(name: str, *, corrected: bool = True) -> RecordPair:
+    """Load both horizontal components of a bundled record (see :func:`available_pairs`).
+
+    Parameters
+    ----------
+    name
+        ``santamonica`` (channels 1 and 3: 90 and 360 deg), ``ferndale`` (channels 1 and 2: 180
+        and 90 deg) or ``ridgecrest`` (channels 1 and 2: 90 and 360 deg).
+    corrected
+        ``ridgecrest`` is an uncorrected V1 file: by default each component is baseline-corrected
+        with :data:`RIDGECREST_CORRECTION` (as :func:`load` does); ``corrected=False`` gives the
+        raw samples.
+
+    Returns
+    -------
+    RecordPair
+        Named after the short name; the components are the records ``load(name, channel=k)``
+        returns. Ridgecrest's channels hold 35430 and 35402 samples: the shorter is zero-padded
+        at its end (``RecordPair.trimmed()`` cuts both to 35402 instead).
+    """
+    key = str(name).strip().lower()
+    entry = _entry(key)
+    if entry.pair is None:
+        raise ValueError(
+            f"record {name!r} has one horizontal component bundled; pairs: {', '.join(available_pairs())}"
+        )
+    first, second = (load(key, channel=c, corrected=corrected) for c in entry.pair)
+    return RecordPair(first, second, key)

@@ -20,6 +20,11 @@ import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sour
 from structures.building import Isolator, ShearBuilding, available_buildings, load_building
 from structures.history import ConvergenceError, Response, time_history, time_history_batch
 from structures.identify import SuperstructureIdentification, identify_superstructure  # noqa: F401
+from structures.plan_history import (  # noqa: F401  (plan building, issue 14)
+    PlanResponse,
+    plan_time_history,
+    plan_time_history_batch,
+)
 from structures.predict import RunPrediction, predict_run  # noqa: F401
 from structures.propagate import ResponseSet, SpectrumScaling, propagate  # noqa: F401  (propagation API)
 from structures.shake_table import (  # noqa: F401  (shake-table runs)
@@ -36,9 +41,12 @@ __all__ = [
     "ConvergenceError",
     "Isolator",
     "Response",
+    "PlanResponse",
     "ShearBuilding",
     "available_buildings",
     "load_building",
+    "plan_time_history",
+    "plan_time_history_batch",
     "time_history",
     "time_history_batch",
 ]

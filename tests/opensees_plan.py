@@ -14,6 +14,9 @@ components 6 and 7).  Law parameters are the rrfrei ones (kN, m).
 
 from __future__ import annotations
 
+import os
+import tempfile
+
 import numpy as np
 
 from tests.opensees_harness import AXIAL_K, _CaptureStderr, _element_args
@@ -67,19 +70,61 @@ def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int]:
     Returns ``(force, n_ok)``: ``force`` is (n, 2); ``n_ok < n`` when ``analyze`` failed at
     sample ``n_ok`` (later rows NaN).
     """
+    force, n_ok, _ = element_force_and_failure(ops, law, params, disp)
+    return force, n_ok
+
+
+def element_force_and_failure(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int, int]:
+    """:func:`element_force` plus the first sample at which the element's ``update()`` reported
+    a failed local Newton solve (its WARNING on opserr), or -1.
+
+    openseespy 3.7.1.2 does not stop the analysis on such a failure (the next ``update()`` of
+    the same step continues the local Newton from the stuck trial z), so the forces after it
+    are not comparable; the failure sample is (as in :func:`tests.opensees_harness.element_force`).
+    """
     disp = np.asarray(disp, dtype=float)
     if disp.ndim != 2 or disp.shape[1] != 2:
         raise ValueError(f"disp must be (n, 2), got {disp.shape}")
     _build(ops, law, params, disp)
     out = np.full(disp.shape, np.nan)
     n_ok = disp.shape[0]
-    with _CaptureStderr():
+    first_fail = -1
+    with _CaptureStderr() as cap:
+        seen = 0
         for k in range(disp.shape[0]):
-            if ops.analyze(1) != 0:
+            status = ops.analyze(1)
+            text = cap.text()
+            if first_fail < 0 and len(text) > seen and "update()" in text[seen:]:
+                first_fail = k
+            seen = len(text)
+            if status != 0:
                 n_ok = k
                 break
             r = ops.eleResponse(1, "force")
             out[k, 0] = r[6]
             out[k, 1] = r[7]
         ops.wipe()
-    return out, n_ok
+    return out, n_ok, first_fail
+
+
+def element_force_recorder(ops, law: str, params: dict, disp, path: str | None = None) -> np.ndarray:
+    """Same forces as :func:`element_force` from one ``analyze(n)`` call with an element
+    recorder (openseespy's fastest path; benchmarks).  Raises RuntimeError if the analysis fails.
+    """
+    disp = np.asarray(disp, dtype=float)
+    _build(ops, law, params, disp)
+    own = path is None
+    if own:
+        fd, path = tempfile.mkstemp(suffix=".out")
+        os.close(fd)
+    try:
+        ops.recorder("Element", "-file", path, "-precision", 17, "-ele", 1, "force")
+        status = ops.analyze(disp.shape[0])
+        ops.wipe()  # flushes and closes the recorder
+        if status != 0:
+            raise RuntimeError(f"OpenSees analysis of {law} failed (status {status})")
+        data = np.loadtxt(path, ndmin=2)
+    finally:
+        if own:
+            os.unlink(path)
+    return data[-disp.shape[0]:, 6:8]

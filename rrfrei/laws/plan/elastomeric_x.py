@@ -1,0 +1,164 @@
+"""ElastomericX in plan: the element's coupled two-component shear law (OpenSees v3.7.1,
+``ElastomericX.cpp``, Kumar, Whittaker & Constantinou 2014), both horizontal directions.
+
+Parameters and units are those of the unidirectional law :mod:`rrfrei.laws.elastomeric_x`
+(same order): fy [kN] (the characteristic strength Qd), alpha [-], gr [kN/m^2], d1, d2, tr [m],
+n [-], tc [m], cd [kN s/m].  Geometry and stiffness (constructor l.265-305, ``PI`` = 3.14159)::
+
+    A = (PI/4) ((d2 + tc)^2 - d1^2),   ke = gr A / (n tr),   k0 = (1/alpha - 1) ke,   u_y = fy / k0
+
+Shear law (``update()`` l.586-666).  With the increment d = u - u_C over the last commit (a
+vector of the two basic shear deformations) and the hard-coded Park-Wen constants A = 1,
+"beta" = 0.1 (constant term), "gamma" = 0.9 (sign term, Nagarajaiah's naming)::
+
+    t_i = 0.1 + 0.9 sgn(z_i d_i),       t_3 = z_1 d_1 t_1 + z_2 d_2 t_2
+    f_i(z) = z_i - z_C,i - (1/u_y) (d_i - z_i t_3) = 0            i = 1, 2   (l.606-612)
+
+a backward-Euler step of Park, Wen & Ang's (1986) coupled model dz = (1/u_y)(I - z z^T T) du.
+It is solved by the element's Newton iteration (l.602-641): from the current *trial* z (not
+z_C), the sign terms held fixed in the Jacobian::
+
+    J11 = 1 + (1/u_y)(2 z1 d1 t1 + z2 d2 t2)     J12 = (t2/u_y) z1 d2
+    J21 = (t1/u_y) z2 d1                         J22 = 1 + (1/u_y)(z1 d1 t1 + 2 z2 d2 t2)
+
+the 2x2 system by Cramer's rule, iterating while ||dz||_2 >= 1e-8 and iter < 100.  Status -1
+when |J11| or |J22| <= DBL_EPSILON (zero Jacobian), -2 when iter reaches 100; the trial z keeps
+the iterate reached, as the element's member does.  Then (l.643-666), with the increment ratios
+r12 = d1/d2 and r21 = d2/d1 (both 0 when d1 d2 == 0) and the t_i of the last iteration::
+
+    dz1/du1 = (1/u_y)(1   - z1 (z1 t1 + z2 t2 r21))    dz1/du2 = (1/u_y)(r12 - z1 (z1 t1 r12 + z2 t2))
+    dz2/du1 = (1/u_y)(r21 - z2 (z1 t1 + z2 t2 r21))    dz2/du2 = (1/u_y)(1   - z2 (z1 t1 r12 + z2 t2))
+    F_i  = cd v_i + fy z_i + ke u_i
+    K_ij = delta_ij (cd/dt + ke) + fy dz_i/du_j
+
+When ||d||_2 = sqrt(d1^2 + d2^2) is 0 (l.588) nothing is recomputed: force and tangent of the
+previous call, including the cd v term.
+
+The vertical model (cavitation, buckling-load and stiffness variation: tag1..tag4 = 0, the
+defaults, as in the differential harness) does not enter the shear law; with tag3 = 0 ke is
+constant.  cd and tc act as in the 1-D port: tc only through the bonded area A, cd as the
+viscous term above (the element has no heating).  The element is *not* isotropic: the sign
+terms act per axis, so its orbit response depends on the orientation of the path (it is
+symmetric under x <-> y and under reflections of either axis).
+
+Along one axis (the other displacement component identically 0) the second component of z, of
+its Newton correction and of the force stays exactly 0 and every operation on the first
+component is the one of :mod:`rrfrei.laws.elastomeric_x` (adding exact zeros, sqrt(d^2) = |d|),
+so the force and tangent are bit for bit the unidirectional ones (for increments above 1e-154 m,
+where d^2 does not underflow).
+
+State (float64[10])::
+
+    [0:2] u        trial (committed, in sc) shear displacement (x, y) [m]
+    [2:4] z        hysteretic variables [-]
+    [4:6] q        force of the last call [kN]
+    [6:10] dk      tangent of the last call (row major) minus the initial k_init I, k_init = k0 + ke [kN/m]
+"""
+
+import math
+
+from numba import njit
+
+from rrfrei.laws._util import sgn
+from rrfrei.laws.elastomeric_x import (
+    BETA_CONST,
+    DBL_EPSILON,
+    GAMMA_SIGN,
+    MAX_ITER,
+    TOL,
+    stiffness,
+)
+from rrfrei.laws.plan.registry import PlanLawSpec, register
+
+
+@njit(cache=True, error_model="numpy")
+def step(p, sc, u, v, dt, st, f, k):
+    """ElastomericX shear forces [kN], tangent [kN/m] and status in plan (module docstring)."""
+    fy = p[0]
+    cd = p[8]
+    ke, k0 = stiffness(p)
+    kinit = k0 + ke
+    d1 = u[0] - sc[0]
+    d2 = u[1] - sc[1]
+    st[0] = u[0]
+    st[1] = u[1]
+    if not (math.sqrt(d1 * d1 + d2 * d2) > 0.0):
+        f[0] = st[4]
+        f[1] = st[5]
+        k[0, 0] = st[6] + kinit
+        k[0, 1] = st[7]
+        k[1, 0] = st[8]
+        k[1, 1] = st[9] + kinit
+        return 0
+    uy = fy / k0
+    ruy = 1.0 / uy
+    zc1 = sc[2]
+    zc2 = sc[3]
+    z1 = st[2]
+    z2 = st[3]
+    it = 0
+    t1 = 0.0
+    t2 = 0.0
+    while True:
+        t1 = BETA_CONST + GAMMA_SIGN * sgn(z1 * d1)
+        t2 = BETA_CONST + GAMMA_SIGN * sgn(z2 * d2)
+        t3 = z1 * d1 * t1 + z2 * d2 * t2
+        f1 = z1 - zc1 - ruy * (d1 - z1 * t3)
+        f2 = z2 - zc2 - ruy * (d2 - z2 * t3)
+        j11 = 1.0 + ruy * (2.0 * z1 * d1 * t1 + z2 * d2 * t2)
+        j21 = (t1 / uy) * z2 * d1
+        j12 = (t2 / uy) * z1 * d2
+        j22 = 1.0 + ruy * (z1 * d1 * t1 + 2.0 * z2 * d2 * t2)
+        if abs(j11) <= DBL_EPSILON or abs(j22) <= DBL_EPSILON:
+            st[2] = z1
+            st[3] = z2
+            f[0] = st[4]
+            f[1] = st[5]
+            return -1
+        dz1 = (f1 * j22 - f2 * j12) / (j11 * j22 - j12 * j21)
+        dz2 = (f1 * j21 - f2 * j11) / (j12 * j21 - j11 * j22)
+        z1 -= dz1
+        z2 -= dz2
+        it += 1
+        if not (math.sqrt(dz1 * dz1 + dz2 * dz2) >= TOL and it < MAX_ITER):
+            break
+    st[2] = z1
+    st[3] = z2
+    if it >= MAX_ITER:
+        f[0] = st[4]
+        f[1] = st[5]
+        return -2
+    r12 = 0.0
+    r21 = 0.0
+    if d1 * d2 != 0.0:
+        r12 = d1 / d2
+        r21 = d2 / d1
+    dz11 = ruy * (1.0 - z1 * (z1 * t1 + z2 * t2 * r21))
+    dz12 = ruy * (r12 - z1 * (z1 * t1 * r12 + z2 * t2))
+    dz21 = ruy * (r21 - z2 * (z1 * t1 + z2 * t2 * r21))
+    dz22 = ruy * (1.0 - z2 * (z1 * t1 * r12 + z2 * t2))
+    f[0] = cd * v[0] + fy * z1 + ke * u[0]
+    f[1] = cd * v[1] + fy * z2 + ke * u[1]
+    k[0, 0] = cd / dt + fy * dz11 + ke
+    k[0, 1] = fy * dz12
+    k[1, 0] = fy * dz21
+    k[1, 1] = cd / dt + fy * dz22 + ke
+    st[4] = f[0]
+    st[5] = f[1]
+    st[6] = k[0, 0] - kinit
+    st[7] = k[0, 1]
+    st[8] = k[1, 0]
+    st[9] = k[1, 1] - kinit
+    return 0
+
+
+SPEC = register(
+    PlanLawSpec(
+        name="elastomeric_x",
+        step=step,
+        state_size=10,
+        description="OpenSees ElastomericX (Kumar) in plan: coupled two-component Park-Wen "
+        "hysteresis plus elastic rubber (ElastomericX.cpp update(), v3.7.1).",
+        opensees_element="ElastomericX",
+    )
+)

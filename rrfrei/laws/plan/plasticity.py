@@ -1,0 +1,102 @@
+"""ElastomericBearingPlasticity in plan (OpenSees v3.7.1, ``ElastomericBearingPlasticity3d.cpp``).
+
+Coupled bidirectional elastic-plastic shear with a circular yield surface (radius qd) and return
+mapping, plus linear and nonlinear hardening (``update``, l.461-512 of the v3.7.1 file)::
+
+    k0 = (1 - alpha1) k_init,  k2 = alpha1 k_init,  k3 = alpha2 k_init       [kN/m]
+    q_tr = k0 (u - u_p,C)   (2-vector),   Y = |q_tr| - qd,   n = q_tr / |q_tr|
+    elastic (Y <= 0):  F_i = q_tr,i + k2 u_i + k3 sgn(u_i) |u_i|^mu
+                       K   = (k0 + k2) I + diag(k3 mu |u_i|^(mu-1))
+    plastic (Y > 0):   u_p = u_p,C + (Y / k0) n
+                       F_i = qd n_i + k2 u_i + k3 sgn(u_i) |u_i|^mu
+                       K   = qd k0 (I - n n^T) / |q_tr| + k2 I + diag(k3 mu |u_i|^(mu-1))
+
+u [m], F [kN], K [kN/m].  ``qd`` is the radius of the yield surface of the hysteretic force: a
+diagonal push yields when |q_tr| = qd, at a component qd / sqrt(2) per axis, where two
+independent springs would carry qd per axis.  The linear hardening k2 u is isotropic; the
+nonlinear term k3 sgn(u_i) |u_i|^mu is applied **per component** (OpenSees l.481-482 and
+l.493-496), not on the resultant, so for mu != 1 it is not rotation-invariant (a push of
+length d along a diagonal carries 2^((1-mu)/2) times the axis value of that term).  Both
+hardening terms are elastic: the dissipation is the hysteretic part's alone.
+
+The return mapping is exact (no integration error); K is its consistent tangent (OpenSees
+l.499-507).  Energy: 4 qd (d - u_y) per cycle of amplitude d along any straight line in plan,
+u_y = qd / k0; 2 pi qd sqrt(r^2 - u_y^2) per revolution of a steady circular orbit of radius r
+(docs/plan_laws.md).
+
+State ``[u_p,x, u_p,y]`` (plastic displacement [m]).  As in OpenSees the trial u_p is not reset
+in the elastic branch ("sticky" trial variable).
+
+Rounding.  OpenSees writes the return as ``dGamma*qTrial(i)/qTrialNorm`` and
+``qYield*qTrial(i)/qTrialNorm``, i.e. (a q_i) / |q|; here n = q / |q| is formed first and
+multiplied, (a) n_i, which differs by at most an ulp or two of the result and makes a path along
+one axis (n = (+-1, 0) exactly, |q| = sqrt(q_x^2) = |q_x|) reproduce the unidirectional law
+:mod:`rrfrei.laws.plasticity` bit for bit (same expressions, same ``powabs``).
+"""
+
+import math
+
+from numba import njit
+
+from rrfrei.laws._util import powabs, sgn
+from rrfrei.laws.plan.registry import PlanLawSpec, register
+
+
+@njit(cache=True, inline="always")
+def _hardening(k3, mu, x):
+    """(k3 sgn(x) |x|^mu, k3 mu |x|^(mu-1)): one component's nonlinear hardening [kN, kN/m]."""
+    if k3 == 0.0:
+        return 0.0, 0.0
+    return k3 * sgn(x) * powabs(x, mu), k3 * mu * powabs(x, mu - 1.0)
+
+
+@njit(cache=True, error_model="numpy")
+def step(p, sc, u, v, dt, st, f, k):
+    """Plan plasticity step (module docstring): forces ``f`` [kN], tangent ``k`` [kN/m],
+    trial plastic displacement ``st`` [m]; status 0 (the return mapping cannot fail)."""
+    k_init = p[0]
+    qd = p[1]
+    k0 = (1.0 - p[2]) * k_init
+    k2 = p[2] * k_init
+    k3 = p[3] * k_init
+    mu = p[4]
+    q0 = k0 * (u[0] - sc[0])
+    q1 = k0 * (u[1] - sc[1])
+    nrm = math.sqrt(q0 * q0 + q1 * q1)  # OpenSees Vector::Norm
+    y = nrm - qd
+    h0, g0 = _hardening(k3, mu, u[0])
+    h1, g1 = _hardening(k3, mu, u[1])
+    if y <= 0.0:
+        f[0] = q0 + k2 * u[0] + h0
+        f[1] = q1 + k2 * u[1] + h1
+        k[0, 0] = k0 + k2 + g0
+        k[0, 1] = 0.0
+        k[1, 0] = 0.0
+        k[1, 1] = k0 + k2 + g1
+        return 0
+    n0 = q0 / nrm
+    n1 = q1 / nrm
+    dg = y / k0
+    st[0] = sc[0] + dg * n0
+    st[1] = sc[1] + dg * n1
+    f[0] = qd * n0 + k2 * u[0] + h0
+    f[1] = qd * n1 + k2 * u[1] + h1
+    d = nrm * nrm * nrm
+    c = qd * k0
+    k[0, 0] = c * q1 * q1 / d + k2 + g0
+    k[0, 1] = -c * q0 * q1 / d
+    k[1, 0] = k[0, 1]
+    k[1, 1] = c * q0 * q0 / d + k2 + g1
+    return 0
+
+
+SPEC = register(
+    PlanLawSpec(
+        name="plasticity",
+        step=step,
+        state_size=2,
+        description="OpenSees ElastomericBearingPlasticity3d shear: circular yield surface, "
+                    "return mapping, per-component hardening.",
+        opensees_element="elastomericBearingPlasticity",
+    )
+)
