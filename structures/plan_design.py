@@ -52,6 +52,7 @@ from rrfrei.gap.design import bound_params
 from rrfrei.laws import get as get_law
 from rrfrei.laws import plan as plan_laws
 from structures.inputs import resolve_building
+from structures.plan_history import plan_time_history
 
 try:
     from ground_motions.asce7 import design_value  # the suite rule's one home
@@ -169,13 +170,12 @@ def _one_pair(item):
             f"record {text!r} is one file, i.e. one component: give both horizontal components as "
             f"'{text}+OTHER_COMPONENT' (two files joined by '+')"
         )
-    try:
-        return ground_motions.load_pair(text)
-    except ValueError as exc:
-        if text in ground_motions.available():
-            raise ValueError(f"bundled record {text!r} has no pair of horizontal components ({exc}); "
-                             "records with both: those ground_motions.load_pair accepts") from None
-        raise
+    if text in ground_motions.available() and text not in ground_motions.available_pairs():
+        raise ValueError(
+            f"bundled record {text!r} has one horizontal component; bundled records with both: "
+            f"{', '.join(ground_motions.available_pairs())} (or give two files joined by '+')"
+        )
+    return ground_motions.load_pair(text)
 
 
 def resolve_pairs(pairs) -> list:
@@ -206,32 +206,39 @@ def _two(name: str, a) -> np.ndarray:
 
 
 def _xy(resp, name: str) -> np.ndarray | None:
-    """``name`` of a plan response as (n, ..., 2): ``name`` with a last axis of 2, or the pair
-    ``name_x`` / ``name_y`` stacked on a last axis (None when the response has neither)."""
-    if hasattr(resp, f"{name}_x") and hasattr(resp, f"{name}_y"):
-        return np.stack([np.asarray(getattr(resp, f"{name}_x"), dtype=float),
-                         np.asarray(getattr(resp, f"{name}_y"), dtype=float)], axis=-1)
+    """``name`` of a plan response as (n, ..., 2): ``name`` with a last axis of 2, the pair
+    ``name_x`` / ``name_y``, or the per-direction responses' ``x.name`` / ``y.name``, stacked on a
+    last axis (None when the response has none of them)."""
     if hasattr(resp, name):
         a = np.asarray(getattr(resp, name), dtype=float)
         if a.ndim >= 2 and a.shape[-1] == 2:
             return a
+    for x, y in ((f"{name}_x", f"{name}_y"), ("x", "y")):
+        if hasattr(resp, x) and hasattr(resp, y):
+            ax, ay = getattr(resp, x), getattr(resp, y)
+            if x == "x":
+                if not (hasattr(ax, name) and hasattr(ay, name)):
+                    continue
+                ax, ay = getattr(ax, name), getattr(ay, name)
+            return np.stack([np.asarray(ax, dtype=float), np.asarray(ay, dtype=float)], axis=-1)
     return None
 
 
 def plan_arrays(response) -> dict[str, np.ndarray]:
     """The histories the answers need from a plan response (duck-typed).
 
-    Reads ``isolator_disp`` and ``base_shear`` as (n, 2) arrays (x, y) [m], [kN], or the
-    per-direction attributes ``isolator_disp_x`` / ``_y`` and ``base_shear_x`` / ``_y``; also,
-    when present, ``drift_ratio`` and ``floor_accel_abs`` per direction (n, stories, 2) and the
+    Reads the isolator displacement and the base shear as (n, 2) arrays (x, y) [m], [kN]:
+    attributes ``isolator_disp`` / ``base_shear`` with a last axis of 2, or ``..._x`` / ``..._y``,
+    or the per-direction responses ``x`` and ``y`` of a :class:`structures.PlanResponse`; also,
+    when present, ``drift_ratio`` and ``floor_accel_abs`` per direction (n, stories, 2), the
     isolator work ``energy["isolator"]`` [kN m] and ``energy_error``.
     """
     disp = _xy(response, "isolator_disp")
     shear = _xy(response, "base_shear")
     if disp is None or shear is None:
         raise ValueError(
-            f"{type(response).__name__} has no (n, 2) isolator_disp / base_shear (or their _x / _y "
-            "per-direction histories): not a plan response"
+            f"{type(response).__name__} has no (n, 2) isolator_disp / base_shear (nor _x / _y or "
+            "x / y per-direction responses): not a plan response"
         )
     out = {"isolator_disp": _two("isolator_disp", disp), "base_shear": _two("base_shear", shear)}
     for name in ("drift_ratio", "floor_accel_abs"):
@@ -382,12 +389,6 @@ def _lambdas(bounds) -> dict[str, float]:
     return {"nominal": 1.0, "lower": float(lo), "upper": float(hi)}
 
 
-def _default_simulate(building, law: str, params: Mapping[str, float], ground):
-    import structures  # the plan building: structures.plan_time_history
-
-    return structures.plan_time_history(building, law, params, ground)
-
-
 def plan_design_answers(
     building,
     pairs,
@@ -434,7 +435,7 @@ def plan_design_answers(
         raise ValueError(f"scale = {scale!r} is invalid: expected a finite factor > 0")
     lam = _lambdas(bounds)
     factor = torsion_factor(torsion)
-    run = simulate or _default_simulate
+    run = simulate or plan_time_history
     rows, orbits = [], {}
     for b, lm in lam.items():
         p = nominal if b == "nominal" else bound_params(law, nominal, lm)

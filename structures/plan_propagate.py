@@ -10,7 +10,7 @@ the summaries, exceedance, fragility and plots work unchanged.  The table's colu
 * the ResponseSet columns, with their plan meaning: ``iso_disp_peak_m`` is the maximum **plan**
   isolator displacement (vector sum, ASCE 7-22 section 17.6), ``iso_disp_residual_m`` the plan
   displacement at the end, ``drift_ratio_max`` / ``floor_acc_max_ms2`` the largest of both
-  directions, ``base_shear_peak_kN`` the largest plan resultant ``|(V_x, V_y)|``,
+  directions, ``base_shear_peak_kN`` the larger of the two directions' peak base shears,
   ``iso_energy_kNm`` the isolator's work (line integral of F . du in plan);
 * per direction: ``iso_disp_x_peak_m``, ``iso_disp_y_peak_m``, ``drift_ratio_x_max``,
   ``drift_ratio_y_max``, ``floor_acc_x_max_ms2``, ``floor_acc_y_max_ms2``,
@@ -48,6 +48,7 @@ from structures.plan_design import (
     suite_value,
     torsion_factor,
 )
+from structures.plan_history import plan_time_history_batch
 from structures.propagate import (
     check_run_options,
     input_fingerprint,
@@ -74,37 +75,42 @@ ANSWER_COLUMNS = {
 
 
 # ----------------------------------------------------------------------------- the task
-def _default_simulate(building, law, params, ground):
-    import structures  # the plan building: structures.plan_time_history
-
-    return structures.plan_time_history(building, law, params, ground)
-
-
 def run_plan_chunk(building, pair, scale: float, params: np.ndarray, simulate: Callable | None = None,
                    threads: int | None = None) -> dict:
     """Run the draws ``params`` (m, n_params) on ``pair`` x ``scale``: dict of per-run arrays.
 
-    Each draw is one plan time history (``simulate(building, law, params, ground)``, default
-    :func:`structures.plan_time_history`); a run that fails (a ``RuntimeError`` such as
-    :class:`structures.ConvergenceError`) has ``converged`` False and NaN demands, and its largest
-    plan displacement before failing is unknown (NaN).
+    By default all draws run at once in :func:`structures.plan_time_history_batch` (Numba
+    ``prange``; a run that fails holds NaN demands and ``converged`` False).  With ``simulate``
+    (``simulate(building, law, params, ground) -> plan response``) each draw is one call, read by
+    :func:`structures.plan_design.plan_arrays`; a ``RuntimeError`` (e.g.
+    :class:`structures.ConvergenceError`) marks the run as not converged.
     """
     if threads is not None:
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-    run = simulate or _default_simulate
     ground = pair if scale == 1.0 else pair.scaled(scale)
+    P = np.ascontiguousarray(np.atleast_2d(np.asarray(params, dtype=float)))
+    if simulate is None:
+        res = plan_time_history_batch(building, None, P, ground)
+        return {
+            "plan": res["iso_plan_disp_peak"], "residual": res["iso_plan_disp_residual"],
+            "x": res["iso_disp_peak"][:, 0], "y": res["iso_disp_peak"][:, 1],
+            "shear_x": res["base_shear_peak"][:, 0], "shear_y": res["base_shear_peak"][:, 1],
+            "drift_x": res["drift_peak"][:, 0, :], "drift_y": res["drift_peak"][:, 1, :],
+            "acc_x": res["floor_acc_peak"][:, 0, :], "acc_y": res["floor_acc_peak"][:, 1, :],
+            "energy": res["iso_energy"], "energy_error": res["energy_error"],
+            "converged": np.asarray(res["converged"], dtype=bool),
+        }
     spec = get_law(building.isolator.law)
-    P = np.atleast_2d(np.asarray(params, dtype=float))
     m, ns = P.shape[0], building.n_stories
     nan = np.full(m, np.nan)
-    out = {k: nan.copy() for k in ("plan", "x", "y", "residual", "shear_x", "shear_y", "shear_plan",
-                                   "energy", "energy_error")}
+    out = {k: nan.copy() for k in ("plan", "x", "y", "residual", "shear_x", "shear_y", "energy",
+                                   "energy_error")}
     for k in ("drift_x", "drift_y", "acc_x", "acc_y"):
         out[k] = np.full((m, ns), np.nan)
     out["converged"] = np.zeros(m, dtype=bool)
     for i in range(m):
         try:
-            resp = run(building, spec.name, spec.as_dict(P[i]), ground)
+            resp = simulate(building, spec.name, spec.as_dict(P[i]), ground)
         except RuntimeError:
             continue
         a = plan_arrays(resp)
@@ -114,7 +120,6 @@ def run_plan_chunk(building, pair, scale: float, params: np.ndarray, simulate: C
         out["x"][i], out["y"][i] = np.abs(u).max(axis=0)
         out["residual"][i] = r[-1]
         out["shear_x"][i], out["shear_y"][i] = np.abs(v).max(axis=0)
-        out["shear_plan"][i] = np.hypot(v[:, 0], v[:, 1]).max()
         for key, name in (("drift", "drift_ratio"), ("acc", "floor_accel_abs")):
             if name in a:
                 peak = np.abs(a[name]).max(axis=0)  # (stories, 2)
@@ -148,7 +153,7 @@ def plan_chunk_table(out: dict, samples: np.ndarray, record: str, scale: float, 
     cols["floor_acc_max_ms2"] = np.fmax(cols["floor_acc_x_max_ms2"], cols["floor_acc_y_max_ms2"])
     cols["base_shear_x_peak_kN"] = out["shear_x"]
     cols["base_shear_y_peak_kN"] = out["shear_y"]
-    cols["base_shear_peak_kN"] = out["shear_plan"]
+    cols["base_shear_peak_kN"] = np.fmax(out["shear_x"], out["shear_y"])
     cols["iso_energy_kNm"] = out["energy"]
     cols["energy_error"] = out["energy_error"]
     ok = np.asarray(out["converged"], dtype=bool)
