@@ -10,15 +10,18 @@ recurrence is a Numba kernel over arrays (``spectra._nigam_jennings``).
 - :func:`scale_to_pga`, :func:`scale_to_spectrum`; :func:`plot_record`, :func:`plot_spectra`.
 - Pairs of horizontal components (issue 14): :class:`RecordPair` (one clock, ``scaled``,
   ``rotated``), :func:`read_pair`, :func:`load_pair` / :func:`available_pairs`;
-  :func:`rotd_spectrum` -> :class:`RotDSpectrum` (RotD50/RotD100, Boore 2010, Numba).
+  :func:`rotd_spectrum` -> :class:`RotDSpectrum` (RotD50/RotD100, Boore 2010, Numba);
+  :func:`scale_pairs_asce7` -> :class:`ScaledSuite` (ASCE 7-22 17.3.3), :func:`mcer_target`,
+  :func:`design_value` (17.6.3.4: average of 7 or more pairs, else maximum); :func:`plot_rotd`.
 """
 
 import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
 
+from .asce7 import ScaledSuite, design_value, mcer_target, scale_pairs_asce7
 from .catalogue import available, available_pairs, load, load_pair
 from .io import read
 from .pairs import RecordPair, read_pair
-from .plotting import plot_record, plot_spectra
+from .plotting import plot_record, plot_rotd, plot_scaled_suite, plot_spectra
 from .processing import baseline_correct, integrate
 from .record import G, Record
 from .rotd import RotDSpectrum, rotd_spectrum
@@ -30,12 +33,18 @@ __all__ = [
     "Record",
     "RecordPair",
     "RotDSpectrum",
+    "ScaledSuite",
     "Spectrum",
     "design_spectrum",
+    "design_value",
+    "mcer_target",
     "plot_record",
+    "plot_rotd",
+    "plot_scaled_suite",
     "plot_spectra",
     "response_spectrum",
     "rotd_spectrum",
+    "scale_pairs_asce7",
     "scale_to_pga",
     "scale_to_spectrum",
     "sdof_response",

@@ -290,6 +290,23 @@ class RecordPair:
             out.append(rec._replace(accel=acc, component=label, rotated_deg=total))
         return self._rebuild(out[0], out[1], azimuths)
 
+    def with_leading_zero(self) -> RecordPair:
+        """A copy starting from rest: one ``a = 0`` sample prepended to both components when either
+        starts away from zero (else ``self``); see :meth:`Record.with_leading_zero`."""
+        if self.accel[0, 0] == 0.0 and self.accel[0, 1] == 0.0:
+            return self
+        recs = [r._replace(accel=np.concatenate(([0.0], r.accel)), leading_zero=True)
+                for r in (self.first, self.second)]
+        n1, n2 = self.npts_recorded
+        return RecordPair(recs[0], recs[1], self.name, self.azimuths, (n1 + 1, n2 + 1))
+
+    def resampled(self, dt: float) -> RecordPair:
+        """Both components resampled at step ``dt`` [s] (linear interpolation, :meth:`Record.resampled`)."""
+        a, b = self.first.resampled(dt), self.second.resampled(dt)
+        ratio = self.dt / a.dt
+        recorded = tuple(int(math.floor((n - 1) * ratio * (1.0 + 1e-12))) + 1 for n in self.npts_recorded)
+        return RecordPair(a, b, self.name, self.azimuths, recorded)
+
     def trimmed(self) -> RecordPair:
         """A copy cut to the shorter recorded length (no zero padding)."""
         n = min(self.npts_recorded)

@@ -86,3 +86,95 @@ def plot_spectra(
         ax.legend(fontsize="small")
     ax.grid(True, which="both", lw=0.3)
     return ax
+
+
+def _psa_units(units: str, where: str) -> tuple[float, str]:
+    if units not in ("g", "m/s^2"):
+        raise ValueError(f"{where}: units must be 'g' or 'm/s^2', got {units!r}")
+    return _UNIT[("psa", units)]
+
+
+def plot_rotd(
+    pair,
+    periods=None,
+    ax=None,
+    *,
+    damping: float = 0.05,
+    target=None,
+    target_label: str = "target",
+    period_range: tuple[float, float] | None = None,
+    units: str = "g",
+    logx: bool = True,
+):
+    """RotD50 and RotD100 of a pair with its two components' spectra (PSA against period).
+
+    Parameters
+    ----------
+    pair
+        A :class:`~ground_motions.pairs.RecordPair`.
+    periods
+        Periods [s]; default 60 log-spaced from 0.05 to 5 s.
+    damping
+        Damping ratio of every spectrum.
+    target
+        Optional target PSA **in m/s^2** (as for :func:`~ground_motions.asce7.scale_pairs_asce7`):
+        a callable ``T -> PSA`` (e.g. :func:`~ground_motions.asce7.mcer_target`), a
+        :class:`Spectrum` or a ``(periods, psa)`` pair; drawn dashed in ``units``.
+    period_range
+        Optional ``(T_lo, T_hi)`` [s] shaded (e.g. the ASCE 7-22 17.3.3 range).
+    units
+        ``"g"`` or ``"m/s^2"`` for the PSA axis.
+    """
+    from .rotd import component_spectra, rotd_spectrum
+
+    factor, ulabel = _psa_units(units, "plot_rotd")
+    t = np.geomspace(0.05, 5.0, 60) if periods is None else np.asarray(periods, dtype=np.float64)
+    rot = rotd_spectrum(pair, t, damping, percentile=(50, 100))
+    c1, c2 = component_spectra(pair, t, damping)
+    ax = _axes(ax)
+    ax.plot(t, c1.psa * factor, lw=0.8, color="0.55", label=f"component {pair.components[0] or 1}")
+    ax.plot(t, c2.psa * factor, lw=0.8, color="0.55", ls=":", label=f"component {pair.components[1] or 2}")
+    ax.plot(t, rot.rotd50.psa * factor, lw=1.4, color="C0", label="RotD50")
+    ax.plot(t, rot.rotd100.psa * factor, lw=1.6, color="C3", label="RotD100 (maximum direction)")
+    if target is not None:
+        ax.plot(t, _target_psa(target, t) * factor, "k--", lw=1.4, label=target_label)
+    if period_range is not None:
+        ax.axvspan(*period_range, color="0.9", zorder=0, label="scaling range")
+    if logx:
+        ax.set_xscale("log")
+    ax.set_xlabel("Period T [s]")
+    ax.set_ylabel(f"Pseudo-spectral acceleration [{ulabel}]")
+    ax.set_title(f"{pair.name}: RotD50 / RotD100, {100 * damping:g} % damping")
+    ax.legend(fontsize="small")
+    ax.grid(True, which="both", lw=0.3)
+    return ax
+
+
+def plot_scaled_suite(suite, ax=None, *, units: str = "g"):
+    """A :class:`~ground_motions.asce7.ScaledSuite`: each scaled pair's RotD100, their average,
+    the target and ``fraction x target`` over the ASCE 7-22 17.3.3 period range."""
+    factor, ulabel = _psa_units(units, "plot_scaled_suite")
+    ax = _axes(ax)
+    t = suite.periods
+    for p, row in zip(suite.pairs, suite.rotd100):
+        ax.plot(t, row * factor, lw=0.7, alpha=0.7, label=f"{p.name} x {p.scale_factor:.3g}")
+    ax.plot(t, suite.average * factor, color="C3", lw=2.0, label="suite average RotD100")
+    ax.plot(t, suite.target * factor, "k--", lw=1.4, label="target (MCE$_R$)")
+    if suite.fraction != 1.0:
+        ax.plot(t, suite.fraction * suite.target * factor, "k:", lw=1.0, label=f"{suite.fraction:g} x target")
+    ax.axvline(suite.governing_period, color="0.5", lw=0.8, ls="-.", label="governing period")
+    ax.set_xlabel("Period T [s]")
+    ax.set_ylabel(f"Pseudo-spectral acceleration [{ulabel}]")
+    ax.set_title(
+        f"ASCE 7-22 17.3.3: {suite.n_pairs} pairs scaled over "
+        f"{suite.period_range[0]:.3g}-{suite.period_range[1]:.3g} s"
+    )
+    ax.legend(fontsize="small")
+    ax.grid(True, which="both", lw=0.3)
+    return ax
+
+
+def _target_psa(target, periods: np.ndarray) -> np.ndarray:
+    from .asce7 import _target_values
+
+    return _target_values(target, periods, where="plot_rotd")

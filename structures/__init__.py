@@ -3,7 +3,10 @@
 Layers: :mod:`structures.newmark` is the Numba kernel template (Newmark + Newton over a chain
 condensed onto the isolator, instantiated per isolator law), :mod:`structures.newmark_records`
 its named inputs and outputs, :mod:`structures.history` the public verbs :func:`time_history` /
-:func:`time_history_batch`; :mod:`structures.building` the frozen models
+:func:`time_history_batch`; :mod:`structures.plan_newmark` / :mod:`structures.plan_history` the
+same in plan (two horizontal directions on a coupled isolator law, no torsion:
+:func:`plan_time_history`, :func:`plan_time_history_batch`, :class:`PlanResponse`, energy in
+:mod:`structures.plan_energy`); :mod:`structures.building` the frozen models
 (:class:`ShearBuilding`, :class:`Isolator`) with modal analysis and TOML loading;
 :mod:`structures.energy` the energy balance; :mod:`structures.propagate` posterior propagation
 (its inputs, executors, store, response set and plots in modules of those names).

@@ -135,6 +135,19 @@ def test_rotated_component_1_is_the_ground_motion_along_its_new_azimuth():
     assert r.first.meta["component"] == "60 deg" and r.first.meta["rotated_deg"] == 30.0
 
 
+def test_a_pair_starts_from_rest_and_resamples_both_components_on_one_clock():
+    p = _pair()
+    z = p.with_leading_zero()
+    assert z.npts == p.npts + 1 and np.all(z.accel[0] == 0.0) and z.npts_recorded == (65, 65)
+    np.testing.assert_array_equal(z.accel[1:], p.accel)
+    assert z.with_leading_zero() is z
+    r = p.resampled(0.005)
+    assert r.dt == 0.005 and r.npts == 2 * p.npts - 1 and r.azimuths == p.azimuths
+    np.testing.assert_array_equal(r.accel[::2], p.accel)
+    ridge = gm.load_pair("ridgecrest").resampled(0.005)
+    assert ridge.npts_recorded == (2 * 35430 - 1, 2 * 35402 - 1) and ridge.trimmed().npts == 2 * 35402 - 1
+
+
 def test_a_pair_refuses_different_steps_a_vertical_component_and_non_orthogonal_azimuths():
     a = gm.Record("a", 0.01, np.ones(10), {"component": "180"})
     with pytest.raises(ValueError, match=r"different time steps \(a: dt = 0.01 s, b: dt = 0.02 s\)"):

@@ -159,3 +159,23 @@ def test_a_single_record_is_not_a_pair():
         rotd_spectrum(gm.load("elcentro"), PERIODS)
     with pytest.raises(ValueError, match="RotD84 was not computed"):
         rotd_spectrum(_pair(7), PERIODS).spectrum(84)
+
+
+def test_the_rotd_plot_shows_both_components_rotd50_rotd100_and_the_target_with_units():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ground_motions.asce7 import mcer_target
+
+    p = gm.load_pair("santamonica")
+    T = np.geomspace(0.1, 4.0, 25)
+    ax = gm.plot_rotd(p, T, target=mcer_target(1.0, 0.6, 8.0), target_label="MCE_R", period_range=(1.5, 3.75))
+    assert ax.get_xlabel() == "Period T [s]" and ax.get_ylabel() == "Pseudo-spectral acceleration [g]"
+    labels = [ln.get_label() for ln in ax.lines]
+    assert labels == ["component 90", "component 360", "RotD50", "RotD100 (maximum direction)", "MCE_R"]
+    np.testing.assert_allclose(ax.lines[3].get_ydata(), rotd_spectrum(p, T).rotd100.psa / gm.G)
+    with pytest.raises(ValueError, match="plot_rotd: units must be 'g' or 'm/s\\^2'"):
+        gm.plot_rotd(p, T, units="cm")
+    plt.close("all")

@@ -85,10 +85,10 @@ def step(p, sc, u, v, dt, st, f, k):
     if not (math.sqrt(d1 * d1 + d2 * d2) > 0.0):
         f[0] = st[4]
         f[1] = st[5]
-        k[0, 0] = st[6] + kinit
+        k[0, 0] = st[6] + k0 + ke  # as the 1-D port: (dk + k0) + ke
         k[0, 1] = st[7]
         k[1, 0] = st[8]
-        k[1, 1] = st[9] + kinit
+        k[1, 1] = st[9] + k0 + ke
         return 0
     uy = fy / k0
     ruy = 1.0 / uy
