@@ -49,16 +49,12 @@ import numpy as np
 import pandas as pd
 
 import ground_motions
+from ground_motions.asce7 import design_value
 from rrfrei.gap.design import bound_params
 from rrfrei.laws import get as get_law
 from rrfrei.laws import plan as plan_laws
 from structures.inputs import resolve_building
 from structures.plan_history import plan_time_history
-
-try:
-    from ground_motions.asce7 import design_value  # the suite rule's one home
-except ImportError:  # pragma: no cover - until the pairs helper's ground_motions.asce7 is merged
-    design_value = None
 
 __all__ = ["ANSWERS", "DEFAULT_LAMBDAS", "PlanDesignAnswers", "TorsionAmplification", "check_plan_law",
            "pair_answers", "plan_arrays", "plan_design_answers", "plot_orbit", "resolve_pairs",
@@ -298,8 +294,6 @@ def suite_value(values: Sequence[float]) -> float:
         raise ValueError("values is empty: give one value per pair of the suite")
     if not np.all(np.isfinite(x)):
         return math.nan
-    if design_value is None:  # pragma: no cover - until ground_motions.asce7 is merged
-        return float(np.mean(x)) if x.size >= 7 else float(np.max(x))
     return float(design_value(x, x.size))
 
 
