@@ -66,7 +66,8 @@ def component_azimuth(component: str) -> float | None:
     """Azimuth [deg clockwise from north, in [0, 360)] named by a component label, or ``None``.
 
     ``"180"``, ``"90 Deg"``, ``"360"`` (-> 0), ``"ELC270"``, ``"N"``, ``"E-W"``, ``"HNE"`` are
-    understood; labels without a direction (``"FN"``, ``"FP"``, ``"L"``, ``""``) give ``None``.
+    understood; labels without a direction (``"FN"``, ``"FP"``, ``"L"``, ``""``) and numbered
+    components (``"H1"``, ``"HN2"``: one digit after letters) give ``None``.
     """
     text = str(component or "").strip().upper()
     if not text:
@@ -76,6 +77,9 @@ def component_azimuth(component: str) -> float | None:
     m = _TRAILING_DEGREES.search(text)
     if m is None:
         return None
+    head = text[: m.start()].strip()
+    if head and len(m.group(1).split(".")[0]) < 2:
+        return None  # "H1", "HN2": numbered components of unknown orientation, not azimuths
     value = float(m.group(1))
     return None if value > 360.0 else value % 360.0
 

@@ -135,6 +135,22 @@ def test_rotated_component_1_is_the_ground_motion_along_its_new_azimuth():
     assert r.first.meta["component"] == "60 deg" and r.first.meta["rotated_deg"] == 30.0
 
 
+@settings(max_examples=40, deadline=None)
+@given(n1=st.integers(1, 60), n2=st.integers(1, 60))
+def test_components_of_different_lengths_keep_every_sample_and_end_in_zeros(n1, n2):
+    rng = np.random.default_rng(n1 * 61 + n2)
+    a, b = rng.normal(size=n1), rng.normal(size=n2)
+    p = gm.RecordPair(gm.Record("a", 0.02, a), gm.Record("b", 0.02, b))
+    n = max(n1, n2)
+    assert p.npts == n and p.npts_recorded == (n1, n2)
+    np.testing.assert_array_equal(p.accel[:n1, 0], a)
+    np.testing.assert_array_equal(p.accel[:n2, 1], b)
+    np.testing.assert_array_equal(p.accel[n1:, 0], 0.0)
+    np.testing.assert_array_equal(p.accel[n2:, 1], 0.0)
+    t = p.trimmed()
+    assert t.npts == min(n1, n2) and "padded" not in t.first.meta and "padded" not in t.second.meta
+
+
 def test_a_pair_starts_from_rest_and_resamples_both_components_on_one_clock():
     p = _pair()
     z = p.with_leading_zero()
@@ -158,6 +174,9 @@ def test_a_pair_refuses_different_steps_a_vertical_component_and_non_orthogonal_
         gm.RecordPair(a, gm.Record("c", 0.01, np.ones(10), {"component": "135"}))
     with pytest.raises(ValueError, match="first must be a ground_motions.Record"):
         gm.RecordPair(np.ones(10), a)
+    h1h2 = gm.RecordPair(gm.Record("r.H1", 0.01, np.ones(10), {"component": "H1"}),
+                         gm.Record("r.H2", 0.01, np.ones(10), {"component": "H2"}))
+    assert h1h2.azimuths == (None, None)  # numbered components: orientation unknown, still a pair
     unknown = gm.RecordPair(a, gm.Record("fn", 0.01, np.ones(10), {"component": "FN"}))
     assert unknown.azimuths == (180.0, None)
     assert unknown.rotated(10.0).azimuths == (None, None)
@@ -165,7 +184,8 @@ def test_a_pair_refuses_different_steps_a_vertical_component_and_non_orthogonal_
 
 @pytest.mark.parametrize(("label", "azimuth"), [
     ("180", 180.0), ("90 Deg", 90.0), ("360", 0.0), ("ELC270", 270.0), ("W", 270.0), ("N", 0.0),
-    ("E-W", 90.0), ("HNE", 90.0), ("FN", None), ("", None), ("L", None), ("999", None),
+    ("E-W", 90.0), ("HNE", 90.0), ("FN", None), ("", None), ("L", None), ("999", None), ("H1", None),
+    ("HN2", None), ("5", 5.0), ("LCN260", 260.0), ("BUR000", 0.0),
 ])
 def test_component_labels_name_azimuths_clockwise_from_north(label, azimuth):
     assert component_azimuth(label) == azimuth

@@ -24,7 +24,7 @@ from _law_strategies import (
 )
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from opensees_plan import PLAN_LAWS, element_force_and_failure
+from opensees_plan import PLAN_LAWS, element_force, element_force_and_failure, element_force_recorder
 
 import rrfrei
 from rrfrei.laws import plan
@@ -145,6 +145,17 @@ def test_fixed_orbits_equal_opensees(ops, law, path):
         "spiral": np.c_[env * np.cos(3 * t), env * np.sin(3 * t)],
     }[path]
     _check_against_opensees(ops, law, PROTOCOL_PARAMS[law], disp)
+
+
+@pytest.mark.parametrize("law", [law for law in LAWS if law in PROTOCOL_PARAMS])
+def test_recorder_fast_path_equals_step_by_step_harness(ops, law):
+    """The benchmark's one-analyze() recorder path returns the same forces (17 digits)."""
+    t = np.linspace(0.0, 4 * np.pi, 301)[1:]
+    disp = np.c_[0.05 * np.sin(t), 0.03 * np.sin(2 * t)]
+    f_step, n_ok = element_force(ops, law, PROTOCOL_PARAMS[law], disp)
+    assert n_ok == disp.shape[0]
+    np.testing.assert_allclose(element_force_recorder(ops, law, PROTOCOL_PARAMS[law], disp), f_step,
+                               rtol=1e-15, atol=0)
 
 
 @pytest.mark.parametrize("path", list(PATHS))

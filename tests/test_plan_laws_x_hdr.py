@@ -132,6 +132,40 @@ def check_against_opensees(ops, law, p, disp):
             assert err <= RTOL, f"max relative force error {err:.3g}"
 
 
+def opensees_tangent(ops, law, p, disp):
+    """(force (n, 2), tangent (n, 2, 2)) of the OpenSees 3-D element on the model of
+    ``tests/opensees_plan.py``; the tangent is the element's basic shear stiffness
+    (``eleResponse(tag, "basicStiff")``: kb22, kb23, kb32, kb33, ElastomericX.cpp and HDR.cpp
+    ``setResponse``), i.e. dF_i/du_j in the harness orientation (basic y, z = global X, Y)."""
+    _build(ops, law, p, disp)
+    force = np.full(disp.shape, np.nan)
+    tangent = np.full((disp.shape[0], 2, 2), np.nan)
+    with _CaptureStderr():
+        for i in range(disp.shape[0]):
+            assert ops.analyze(1) == 0
+            force[i] = ops.eleResponse(1, "force")[6:8]
+            tangent[i] = np.reshape(ops.eleResponse(1, "basicStiff"), (2, 2))
+        ops.wipe()
+    return force, tangent
+
+
+TANGENT_RTOL = {"elastomeric_x": 1e-7, "hdr": RTOL}
+"""ElastomericX: OpenSees' global Newton calls ``update()`` twice per step here (imposed
+displacement, then the correction) and each call runs the local Newton again from the previous
+trial z, moving z within the local tolerance 1e-8; the tangent's (1 - z^2 t)/u_y amplifies that
+(1.4e-9 seen with u_y = 2e-8 m), the force does not (4e-21).  Called twice, ours is OpenSees'
+tangent bit for bit (``test_elastomeric_x_tangent_is_opensees_with_its_second_update``)."""
+
+
+def check_tangent_against_opensees(ops, law, p, disp):
+    """Forces equal to 1e-9 and tangents (dF_i/du_j) to TANGENT_RTOL of their peaks."""
+    f, k = rrfrei.simulate_force(law, p, disp, return_tangent=True)
+    f_os, k_os = opensees_tangent(ops, law, p, disp)
+    assert np.max(np.abs(f - f_os)) <= RTOL * np.max(np.abs(f_os))
+    err = np.max(np.abs(k - k_os)) / np.max(np.abs(k_os))
+    assert err <= TANGENT_RTOL[law], f"max relative tangent error {err:.3g}"
+
+
 # --- the peer ---------------------------------------------------------------------------------
 
 def test_plan_laws_are_registered_with_their_opensees_element():
@@ -169,6 +203,47 @@ def test_hypothesis_paths_equal_opensees(ops, law, kind, data):
 @settings(max_examples=500, **SETTINGS)
 def test_hypothesis_paths_equal_opensees_sweep(ops, law, kind, data):
     check_against_opensees(ops, law, data.draw(PARAMS[law]()), data.draw(PATHS[kind]()))
+
+
+@pytest.mark.opensees
+@pytest.mark.parametrize("law", LAWS)
+def test_tangent_is_the_elements_assembled_stiffness(ops, law):
+    """The 2x2 tangent, off-diagonal terms included (ElastomericX's is far from symmetric)."""
+    d = np.cumsum(np.random.default_rng(1).normal(0.0, 0.004, (60, 2)), axis=0)
+    d[10:13, 1] = d[9, 1]  # x-only increments: ElastomericX's r12 = r21 = 0 branch
+    check_tangent_against_opensees(ops, law, FIXED[law], d)
+
+
+@pytest.mark.opensees
+@pytest.mark.parametrize("law", LAWS)
+@given(data=st.data())
+@settings(max_examples=15, **SETTINGS)
+def test_hypothesis_tangents_equal_opensees(ops, law, data):
+    check_tangent_against_opensees(ops, law, data.draw(PARAMS[law]()),
+                                   data.draw(st.one_of(random_paths(), circles())))
+
+
+@pytest.mark.opensees
+def test_elastomeric_x_tangent_is_opensees_with_its_second_update(ops):
+    """Run the step twice per sample from the same committed state, as OpenSees' Newton runs
+    ``update()`` in this harness: the tangent is then OpenSees' bit for bit (once: 9e-13)."""
+    p = dict(fy=1.0, alpha=0.015625, gr=1000.0, d1=0.0, d2=1.0, tr=0.001, n=1.0, tc=0.0, cd=0.0)
+    d = figure_eight(0.01, 0.03, 40, 2)
+    spec = plan.get("elastomeric_x")
+    pp = spec.law.pack(p)
+    sc = np.array(spec.initial_state)
+    st_ = sc.copy()
+    f, k = np.zeros(2), np.zeros((2, 2))
+    tangent = np.empty((len(d), 2, 2))
+    for i, u in enumerate(d):
+        for _ in range(2):
+            assert spec.step(pp, sc, u, np.zeros(2), 1.0, st_, f, k) == 0
+        tangent[i] = k
+        sc[:] = st_
+    _, k_os = opensees_tangent(ops, "elastomeric_x", p, d)
+    np.testing.assert_array_equal(tangent, k_os)
+    _, k_once = rrfrei.simulate_force("elastomeric_x", p, d, return_tangent=True)
+    assert 0.0 < np.max(np.abs(k_once - k_os)) <= TANGENT_RTOL["elastomeric_x"] * np.max(np.abs(k_os))
 
 
 @pytest.mark.opensees

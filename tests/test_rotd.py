@@ -85,6 +85,21 @@ def test_rotd100_lies_between_the_larger_component_and_the_srss_and_above_rotd50
     assert np.all(rot100 <= np.hypot(s1.psa, s2.psa) * (1 + 1e-12))
 
 
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**20), n_angles=st.sampled_from([4, 36, 180, 360]))
+def test_rotd100_is_the_peak_plan_displacement_up_to_the_angle_step(seed, n_angles):
+    """Over all directions, max_theta max_t |u . e(theta)| = max_t |u(t)| (the oscillator's peak
+    plan displacement); a grid of angles with step 180/n misses at most a factor cos(90/n)."""
+    p = _pair(seed)
+    T = PERIODS[1:]
+    r = rotd_spectrum(p, T, percentile=100, n_angles=n_angles).sd[0]
+    for j, period in enumerate(T):
+        u1 = gm.sdof_response(p.first, period)[0]
+        u2 = gm.sdof_response(p.second, period)[0]
+        plan = np.max(np.hypot(u1, u2))
+        assert plan * math.cos(math.radians(90.0 / n_angles)) * (1 - 1e-12) <= r[j] <= plan * (1 + 1e-12)
+
+
 def test_one_factor_on_the_pair_scales_every_rotdnn_by_it():
     p = _pair(3)
     r = rotd_spectrum(p, PERIODS)

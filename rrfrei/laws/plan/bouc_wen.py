@@ -1,35 +1,36 @@
 """ElastomericBearingBoucWen in plan (OpenSees v3.7.1, ``ElastomericBearingBoucWen3d.cpp``).
 
-Coupled bidirectional Bouc-Wen hysteresis (Park, Wen & Ang 1986 form, A = 1) with a vector
-hysteretic variable z = (z_x, z_y), plus linear and nonlinear hardening::
+Coupled bidirectional Bouc-Wen hysteresis (A = 1; for eta = 2 the model of Park, Wen & Ang 1986,
+Earthquake Eng. Struct. Dyn. 14, 543-557) with a vector hysteretic variable z = (z_x, z_y), plus
+linear and nonlinear hardening::
 
     k0 = (1 - alpha1) k_init,  k2 = alpha1 k_init,  k3 = alpha2 k_init,  u_y = qd / k0
     u_y dz = [A I - |z|^(eta-2) (gamma + beta sgn(z . du)) z z^T] du
     F_i    = qd z_i + k2 u_i + k3 sgn(u_i) |u_i|^mu        (hardening per component)
 
 u [m], F [kN], stiffnesses [kN/m].  Along one axis (z_y = du_y = 0) it is the unidirectional
-law :mod:`rrfrei.laws.bouc_wen`; under a diagonal push |z| saturates at the same
-(beta + gamma)^(-1/eta) as along an axis, so the hysteretic force is bounded by qd in any
-direction (a circle), where two independent springs would reach qd per axis.
+law :mod:`rrfrei.laws.bouc_wen`; under a push in any direction |z| saturates at the same
+(beta + gamma)^(-1/eta) as along an axis, so the hysteretic force is bounded by a circle, where
+two independent springs would reach that bound per axis (sqrt(2) times it on a diagonal).
 
-Integration (``update``, v3.7.1 l.472-553): one backward-Euler step over the whole increment
+Integration (``update``, v3.7.1 l.497-583): one backward-Euler step over the whole increment
 du = u - u_C, solved for z by Newton's method on the two components, from the current *trial* z::
 
     r1 = z . du,  s = gamma + beta sgn(r1),  t3 = |z|^(eta-2) r1 s,  t4 = |z|^(eta-4) s
     f_i(z) = z_i - z_C,i - (1/u_y) (A du_i - z_i t3)
-    Df     = the 2x2 Jacobian of OpenSees (l.494-501, term by term, sign terms held constant)
+    Df     = the 2x2 Jacobian of OpenSees (l.523-530, term by term, sign terms held constant)
     z <- z - Df^-1 f
 
-with |z| = DBL_EPSILON where z = 0, while |dz| >= tol = 1e-12 and iter < maxIter = 25 (the
-element's defaults).  Df^-1 f is solved as OpenSees' ``Vector::operator/(Matrix)`` does:
+with |z| = DBL_EPSILON where z = 0 (l.510-544), while |dz| >= tol = 1e-12 and iter < maxIter = 25
+(the element's defaults, l.149-150).  Df^-1 f is solved as OpenSees' ``Vector::operator/(Matrix)`` does:
 LAPACK ``dgesv`` (``dgetrf2`` LU with partial pivoting, L scaled by the reciprocal pivot,
 ``dgetrs`` with reference-BLAS ``dtrsm``); a singular U leaves dz = f, as ``dgesv`` leaves the
 right-hand side unsolved.  Status -1 if |Df_xx| or |Df_yy| <= DBL_EPSILON (OpenSees' "zero
-Jacobian"), -2 if the loop ends with iter >= 25 (a solve converging exactly on the 25th
-iteration also fails, as in OpenSees).  When |du| <= DBL_EPSILON (Euclidean norm) nothing is
-recomputed: force and tangent are those of the previous call (OpenSees l.474).
+Jacobian", l.533-538), -2 if the loop ends with iter >= 25 (a solve converging exactly on the 25th
+iteration also fails, as in OpenSees, l.547-552).  When |du| <= DBL_EPSILON (Euclidean norm)
+nothing is recomputed: force and tangent are those of the previous call (OpenSees l.500).
 
-Tangent (l.527-550): with t5 = |z_prev|^(eta-2) s of the last iteration's start point,
+Tangent (l.555-582): with t5 = |z_prev|^(eta-2) s of the last iteration's start point,
 du_x/du_y ratios (0 where du_x du_y = 0)::
 
     dz/du (times u_y) = [[A - z_x t5 (z_x + z_y du_y/du_x), (A - z_x^2 t5) du_x/du_y - z_x z_y t5],
@@ -42,7 +43,8 @@ each entry clipped to [-1, 1] as OpenSees does (a diagonal entry beyond 1 in mag
 Along one axis the iteration is the unidirectional law's (Df is diagonal, dgesv divides), but
 OpenSees' 3-D residual is written (1/u_y)(A du - z |z|^(eta-2) (z du) s) where the 2-D one is
 (du/u_y)(A - |z|^eta s): the two round differently, so a path along one axis reproduces
-:mod:`rrfrei.laws.bouc_wen` to rounding (~1e-15 relative), not bit for bit; this module follows
+:mod:`rrfrei.laws.bouc_wen` to rounding, not bit for bit (same status and failure sample; forces
+within 1e-14 of the peak force, worst 6.2e-15 over 3000 random histories); this module follows
 the 3-D element, whose openseespy results it reproduces.  A further difference: the 1-D element
 skips the update only for du == 0 exactly, the 3-D one for |du| <= DBL_EPSILON.
 

@@ -1,7 +1,8 @@
 """ElastomericBearingPlasticity in plan (OpenSees v3.7.1, ``ElastomericBearingPlasticity3d.cpp``).
 
 Coupled bidirectional elastic-plastic shear with a circular yield surface (radius qd) and return
-mapping, plus linear and nonlinear hardening (``update``, l.461-512 of the v3.7.1 file)::
+mapping, plus linear and nonlinear hardening (``update``, l.477-517 of the v3.7.1 file;
+constants l.224 and l.244-246)::
 
     k0 = (1 - alpha1) k_init,  k2 = alpha1 k_init,  k3 = alpha2 k_init       [kN/m]
     q_tr = k0 (u - u_p,C)   (2-vector),   Y = |q_tr| - qd,   n = q_tr / |q_tr|
@@ -14,13 +15,13 @@ mapping, plus linear and nonlinear hardening (``update``, l.461-512 of the v3.7.
 u [m], F [kN], K [kN/m].  ``qd`` is the radius of the yield surface of the hysteretic force: a
 diagonal push yields when |q_tr| = qd, at a component qd / sqrt(2) per axis, where two
 independent springs would carry qd per axis.  The linear hardening k2 u is isotropic; the
-nonlinear term k3 sgn(u_i) |u_i|^mu is applied **per component** (OpenSees l.481-482 and
-l.493-496), not on the resultant, so for mu != 1 it is not rotation-invariant (a push of
+nonlinear term k3 sgn(u_i) |u_i|^mu is applied **per component** (OpenSees l.490-491 and
+l.505-508), not on the resultant, so for mu != 1 it is not rotation-invariant (a push of
 length d along a diagonal carries 2^((1-mu)/2) times the axis value of that term).  Both
 hardening terms are elastic: the dissipation is the hysteretic part's alone.
 
 The return mapping is exact (no integration error); K is its consistent tangent (OpenSees
-l.499-507).  Energy: 4 qd (d - u_y) per cycle of amplitude d along any straight line in plan,
+l.510-516).  Energy: 4 qd (d - u_y) per cycle of amplitude d along any straight line in plan,
 u_y = qd / k0; 2 pi qd sqrt(r^2 - u_y^2) per revolution of a steady circular orbit of radius r
 (docs/plan_laws.md).
 
