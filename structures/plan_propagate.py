@@ -27,6 +27,7 @@ Units: m, s, kN, tonnes; accelerations m/s^2; drift ratios dimensionless.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Callable, Mapping, Sequence
@@ -222,11 +223,12 @@ def propagate_pairs(
         raise ValueError(f"lam = {lam!r} is invalid: expected a finite property modification factor > 0")
     factor = torsion_factor(torsion)
     run = prepare_run(posterior, bld, n_samples, seed, limits)
-    params = run.params
-    if lam != 1.0:
+    if lam != 1.0:  # the bound analyses: every draw's force-like parameters x lam
         spec = get_law(law)
-        params = np.ascontiguousarray(np.array(
-            [spec.pack(bound_params(law, spec.as_dict(row), lam)) for row in params], dtype=float))
+        run = dataclasses.replace(run, params=np.ascontiguousarray(np.array(
+            [spec.pack(bound_params(law, spec.as_dict(row), lam)) for row in run.params], dtype=float)))
+        run.notes.append(f"isolator properties x {lam:g} (property modification factor)")
+    params = run.params
     description = {
         "bidirectional": True,
         "law": run.law,
@@ -255,16 +257,12 @@ def propagate_pairs(
     table = run_chunks(make_chunks(len(recs), scale_values, n_samples, chunk_size), run_plan_chunk,
                        task_args, rows, executor=executor, store=store, fingerprint=fingerprint,
                        description=description, progress=progress)
-    if lam != 1.0:
-        run.notes.append(f"isolator properties x {lam:g} (property modification factor)")
     run.notes.append("plan building without torsion: total_max_disp_m is the plan displacement at the "
                      "centre" if torsion is None else
                      f"total_max_disp_m = plan displacement x {factor:.4g} (torsional amplification)")
-    rs = response_set(run, table, tuple(str(r.name) for r in recs), scale_values, seed,
-                      "intensity (pair scale factor) [-]", {str(r.name): 1.0 for r in recs}, stacklevel=3)
-    if lam != 1.0:  # the draws as run
-        rs.draws.loc[:, :] = params
-    return rs
+    return response_set(run, table, tuple(str(r.name) for r in recs), scale_values, seed,
+                        "intensity (pair scale factor) [-]", {str(r.name): 1.0 for r in recs},
+                        stacklevel=3)
 
 
 # ----------------------------------------------------------------------------- the suite
