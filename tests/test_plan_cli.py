@@ -97,3 +97,31 @@ def test_a_law_without_a_plan_form_and_bounds_without_pairs_are_refused(tmp_path
     proc = _run(["--posterior", str(tmp_path / "p.nc"), "--building", "three_story", "--records", "elcentro",
                  "--bounds", "0.85,1.15", "--out", str(tmp_path / "o")])
     assert proc.returncode == 2 and "need --bidirectional" in proc.stderr, proc.stderr
+
+
+def test_asce7_scaling_scales_each_pair_by_its_factor_before_the_runs(posterior, tmp_path):
+    """--asce7: the pairs are scaled per 17.3.3 first (one factor per pair, the API's), then run."""
+    import warnings
+
+    import ground_motions as gm
+
+    out = tmp_path / "out"
+    proc = _run(["--posterior", str(posterior), "--building", "three_story",
+                 "--records", "santamonica,ferndale", "--bidirectional", "--asce7", "1.0,0.6,8,1.2,1.8",
+                 "--samples", "2", "--out", str(out), "--no-progress"])
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        suite = gm.scale_pairs_asce7([gm.load_pair("santamonica"), gm.load_pair("ferndale")],
+                                     gm.mcer_target(1.0, 0.6, 8.0), 1.2, 1.8)
+    scaling = pd.read_csv(out / "asce7_scaling.csv")
+    assert list(scaling["pair"]) == ["santamonica", "ferndale"]
+    pd.testing.assert_series_equal(scaling["factor"], pd.Series(suite.factors, name="factor"), rtol=1e-12)
+    assert "fewer than 7 pairs" in (out / "asce7_scaling.txt").read_text()
+    assert (out / "asce7_scaling.png").stat().st_size > 0
+    table = pd.read_parquet(out / "responses.parquet").drop(columns="bound")
+    api = propagate_pairs(posterior, "three_story", suite.pairs, n_samples=2, progress=False)
+    pd.testing.assert_frame_equal(table, api.table)
+    proc = _run(["--posterior", str(posterior), "--building", "three_story", "--records", "elcentro",
+                 "--asce7", "1.0,0.6,8,1.2,1.8", "--out", str(tmp_path / "o")])
+    assert proc.returncode == 2 and "need --bidirectional" in proc.stderr, proc.stderr

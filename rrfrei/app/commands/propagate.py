@@ -5,12 +5,14 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 import ground_motions
+from ground_motions.asce7 import SuiteSizeWarning
 from structures.inputs import resolve_building, resolve_records
 from structures.plan_design import (
     TorsionAmplification,
@@ -47,7 +49,8 @@ DIR/design_answers.csv (per pair and over the suite, per bound, for the posterio
 design displacement is the median; at the first scale),
 DIR/design_draws.csv and DIR/design_distribution.csv (the suite design values per posterior draw
 and their percentiles) and DIR/orbit_<pair>.png (isolator y vs x with the design-displacement
-circle).  Stores: DIR/store-plan/<bound>.
+circle).  With --asce7 the pairs are first scaled per ASCE 7-22 17.3.3 (DIR/asce7_scaling.csv,
+.txt, .png).  Stores: DIR/store-plan/<bound>.
 """
 
 
@@ -108,6 +111,18 @@ def _torsion(text: str) -> TorsionAmplification:
             f"ratio), got {text!r}: {exc}") from None
 
 
+def _asce7(text: str) -> tuple[float, ...]:
+    msg = (f"asce7 must be SDS,SD1,TL,T_UPPER,T_LOWER (design spectrum [g, g, s], T_M with upper- and "
+           f"lower-bound properties [s]), got {text!r}")
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(msg) from None
+    if len(vals) != 5 or not all(0.0 < v < float("inf") for v in vals) or vals[3] > vals[4]:
+        raise argparse.ArgumentTypeError(msg)
+    return vals
+
+
 def register(sub) -> None:
     p = sub.add_parser(
         "propagate",
@@ -148,6 +163,10 @@ def register(sub) -> None:
                    help="with --bidirectional: amplify the total maximum displacement for a bearing at "
                         "Y m from the centre of a B x D m plan with eccentricity E m (period ratio PT, "
                         "default 1); default: no torsion (the plan building has none)")
+    p.add_argument("--asce7", type=_asce7, default=None, metavar="SDS,SD1,TL,T_UPPER,T_LOWER",
+                   help="with --bidirectional: first scale the pairs per ASCE 7-22 17.3.3 (one factor per "
+                        "pair, suite-average RotD100 >= the MCE_R spectrum, 1.5 x the design spectrum, over "
+                        "0.75 T_UPPER to 1.25 T_LOWER); --scales then multiply the scaled pairs")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of a table")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -165,13 +184,21 @@ def run(args: argparse.Namespace) -> int:
     # validate cheap inputs first, in the order a user reads the command line
     building = resolve_building(args.building)
     names = [s.strip() for s in args.records.split(",") if s.strip()]
-    if not args.bidirectional and (args.bounds is not None or args.torsion is not None):
-        raise ValueError("--bounds and --torsion need --bidirectional (the code's answers of record pairs)")
+    if not args.bidirectional and (args.bounds is not None or args.torsion is not None or args.asce7):
+        raise ValueError("--bounds, --torsion and --asce7 need --bidirectional (the code's answers of record "
+                         "pairs)")
     if args.bidirectional:
         check_plan_law(building.isolator.law)
         if names == ["all"]:
             names = list(ground_motions.available_pairs())
         records = resolve_pairs(names)
+        if args.asce7 is not None:
+            sds, sd1, tl, t_upper, t_lower = args.asce7
+            with warnings.catch_warnings():  # fewer than 7 pairs: said in suite.summary() below
+                warnings.simplefilter("ignore", SuiteSizeWarning)
+                suite = ground_motions.scale_pairs_asce7(records, ground_motions.mcer_target(sds, sd1, tl),
+                                                         t_upper, t_lower)
+            records = list(suite.pairs)
     else:
         if names == ["all"]:
             names = list(ground_motions.available())
@@ -241,6 +268,15 @@ def run(args: argparse.Namespace) -> int:
         figures.append("fragility.png")
 
     plan = _bidirectional(args, out, building, records, sets, plt) if sets else None
+    if sets and args.asce7 is not None:
+        pd.DataFrame({"pair": [p.name for p in suite.pairs], "factor": suite.factors}).to_csv(
+            out / "asce7_scaling.csv", index=False)
+        (out / "asce7_scaling.txt").write_text(suite.summary() + "\n")
+        fig, ax = plt.subplots(figsize=(7.0, 4.2), layout="constrained")
+        ground_motions.plot_scaled_suite(suite, ax=ax)
+        fig.savefig(out / "asce7_scaling.png", dpi=120)
+        plt.close(fig)
+        figures.append("asce7_scaling.png")
     figures += plan["figures"] if plan else []
 
     pooled = summary[summary["record"] == ALL]
@@ -257,6 +293,11 @@ def run(args: argparse.Namespace) -> int:
             "notes": list(rs.notes), "out": str(out), "figures": figures,
         }
         if plan:
+            if args.asce7 is not None:
+                body["asce7_scaling"] = {"factors": dict(zip([p.name for p in suite.pairs],
+                                                             map(float, suite.factors))),
+                                         "governing_period_s": float(suite.governing_period),
+                                         "min_ratio": float(suite.min_ratio)}
             body["bidirectional"] = {"design_answers": plan["answers"].to_dict(),
                                      "design_distribution": plan["distribution"].to_dict(orient="records")}
         print(json.dumps(body, indent=2, default=float))
@@ -272,6 +313,9 @@ def run(args: argparse.Namespace) -> int:
         extra = f" ({f.note})" if f.note else ""
         print(f"fragility {f.demand} > {f.limit:g}: theta = {f.theta:.4g}, beta = {f.beta:.3f}{extra}")
     if plan:
+        if args.asce7 is not None:
+            print()
+            print(suite.summary())
         ans = plan["answers"]
         with pd.option_context("display.width", 160, "display.max_columns", 20, "display.precision", 4):
             print()
