@@ -80,12 +80,13 @@ BOUNDS = ("nominal", "lower", "upper")
 class TorsionAmplification:
     """Static torsional amplification of the displacement of a bearing away from the centre.
 
-    ``factor = 1 + (y / P_T^2) * 12 e / (b^2 + d^2)``, the form of ASCE 7-16 eq. 17.5-3 (the
-    equivalent-lateral-force total maximum displacement D_TM from D_M; Hassan 2019, Int. J. Civil
-    Eng., "Assessment of ASCE 7-16 seismic isolation bearing torsional displacement").  The plan
+    ``factor = 1 + (y / P_T^2) * 12 e / (b^2 + d^2)``: the equivalent-lateral-force expression of
+    the total maximum displacement D_TM from D_M as we know it from ASCE 7-16 (eq. 17.5-3; the
+    expression Hassan 2019, Int. J. Civil Eng., "Assessment of ASCE 7-16 seismic isolation bearing
+    torsional displacement", assesses).  The formula, its ASCE 7-22 number and any lower limit on
+    D_TM / D_M were not verified against the standard's text; no such limit is applied.  The plan
     building itself has no torsion; this factor is applied to its response-history plan
-    displacement to estimate the corner bearing.  Any lower limit the standard puts on D_TM / D_M
-    is not applied (not verified here).
+    displacement to estimate the corner bearing.
 
     Attributes
     ----------
