@@ -164,15 +164,20 @@ def _plan_ground(ground, dt) -> tuple[str, np.ndarray, float]:
             ) from None
         if dt is None:
             raise ValueError("dt [s] is required with a ground acceleration array: the step of its samples")
-        rdt = dt
+        try:
+            rdt = float(dt)
+        except (TypeError, ValueError):
+            raise ValueError(f"dt = {dt!r} is invalid: expected a finite number > 0 s") from None
         step = None
     if not (np.isfinite(rdt) and rdt > 0.0):
         raise ValueError(f"ground {name!r}: dt = {rdt!r} is invalid: expected a finite number > 0 s")
-    rdt = float(rdt)
     if acc.ndim != 2 or acc.shape[1] != 2 or acc.shape[0] < 2:
+        one = ""
+        if acc.ndim == 1:
+            one = " (one component: use structures.time_history, or pair it with the other)"
         raise ValueError(
             f"ground {name!r}: accel must be an (n, 2) array (x, y per sample, n >= 2) [m/s^2], "
-            f"got shape {acc.shape}"
+            f"got shape {acc.shape}{one}"
         )
     bad = np.argwhere(~np.isfinite(acc))
     if bad.size:
@@ -181,9 +186,14 @@ def _plan_ground(ground, dt) -> tuple[str, np.ndarray, float]:
             f"ground {name!r}: accel[{i}, {a}] = {float(acc[i, a])!r} (component {DIRECTIONS[a]}, "
             f"t = {i * rdt:g} s) is not finite"
         )
-    if step is None or float(step) == rdt:
+    if step is None:
         return name, np.ascontiguousarray(acc), rdt
-    h = float(step)
+    try:
+        h = float(step)
+    except (TypeError, ValueError):
+        h = float("nan")
+    if h == rdt:
+        return name, np.ascontiguousarray(acc), rdt
     if not (np.isfinite(h) and 0.0 < h <= rdt):
         raise ValueError(
             f"dt = {step!r} is invalid for ground {name!r}: expected 0 < dt <= the record step {rdt:g} s "

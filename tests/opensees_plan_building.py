@@ -9,8 +9,10 @@ The 3-D counterpart of :mod:`tests.opensees_dynamic` (same analysis settings):
   :mod:`tests.opensees_plan` (``-orient 0 0 1 1 0 0``: local x vertical, local y = global X,
   local z = global Y), its parameters mapped to the prototype by similitude
   (:func:`tests.opensees_dynamic.prototype_params`): ``elastomericBearingPlasticity`` /
-  ``elastomericBearingBoucWen``; the ``linear`` law as a zeroLength element with an elastic
-  material in X and one in Y (``count length_scale k`` each);
+  ``elastomericBearingBoucWen``, and ``ElastomericX`` / ``HDR`` exactly as the unidirectional peer
+  builds them (:func:`tests.opensees_dynamic._isolator`; vertical DOF fixed); the ``linear``
+  law as a zeroLength element with an elastic material in X and one in Y (``count length_scale
+  k`` each);
 * story springs and dashpots as zeroLength elements with ``uniaxialMaterial Elastic k eta=c`` in
   dirs 1 and 2 (the x stories from ``building``, the y stories from ``building_y``); Rayleigh's
   mass term as zeroLength dashpots to the ground;
@@ -26,12 +28,14 @@ import os
 import tempfile
 
 import numpy as np
-from opensees_dynamic import prototype_params
+from opensees_dynamic import THREE_D, prototype_params
+from opensees_dynamic import _isolator as _isolator_3d
 
+from tests.opensees_harness import _CaptureStderr
 from tests.opensees_plan import ORIENT
 
 PLAN_ELEMENT = {"plasticity": "elastomericBearingPlasticity", "bouc_wen": "elastomericBearingBoucWen"}
-LAWS = ("linear", *PLAN_ELEMENT)
+LAWS = ("linear", *PLAN_ELEMENT, *THREE_D)
 AXIAL_K = 1.0e6  # kN/m: axial, torsional and rocking materials of the bearing (DOFs fixed anyway)
 
 
@@ -41,6 +45,9 @@ def _isolator(ops, law: str, p: dict) -> None:
             raise ValueError("the linear isolator's dashpot c is not mapped (its tangent differs)")
         ops.uniaxialMaterial("Elastic", 5, p["k"])
         ops.element("zeroLength", 1, 1, 2, "-mat", 5, 5, "-dir", 1, 2)
+        return
+    if law in THREE_D:  # already 3-D elements, with this orientation, in the 1-D peer
+        _isolator_3d(ops, law, p)
         return
     for tag in (1, 2, 3, 4):
         ops.uniaxialMaterial("Elastic", tag, AXIAL_K)
@@ -109,9 +116,11 @@ def build(ops, building, ag: np.ndarray, dt: float, *, building_y=None, tol: flo
     return n + 2
 
 
-def plan_building(ops, building, ag, dt: float, **kw) -> dict[str, np.ndarray]:
+def plan_building(ops, building, ag, dt: float, **kw) -> dict:
     """Step by step (``analyze(1, dt)``): isolator displacement (n, 2) [m], floor displacements
-    (2, n, stories) [m] and absolute accelerations (2, n, stories) [m/s^2], roof last."""
+    (2, n, stories) [m] and absolute accelerations (2, n, stories) [m/s^2], roof last, and
+    ``n_ok``: the number of valid rows (n, or the step at which ``analyze`` failed: OpenSees does
+    not subdivide; later rows NaN)."""
     ag = np.asarray(ag, dtype=float)
     if ag.ndim != 2 or ag.shape[1] != 2:
         raise ValueError(f"ag must be (n, 2), got {ag.shape}")
@@ -123,16 +132,23 @@ def plan_building(ops, building, ag, dt: float, **kw) -> dict[str, np.ndarray]:
     u_iso = np.zeros((n, 2))
     disp = np.zeros((2, n, roof - 2))
     acc = np.zeros((2, n, roof - 2))
+    n_ok = n
     for k in range(1, n):
-        if ops.analyze(1, dt) != 0:
-            raise RuntimeError(f"OpenSees failed at step {k} (t = {k * dt:g} s)")
+        with _CaptureStderr():
+            status = ops.analyze(1, dt)
+        if status != 0:
+            n_ok = k
+            u_iso[k:] = np.nan
+            disp[:, k:] = np.nan
+            acc[:, k:] = np.nan
+            break
         for d in (0, 1):
             u_iso[k, d] = ops.nodeDisp(2, d + 1)
             for c, node in enumerate(floors):
                 disp[d, k, c] = ops.nodeDisp(node, d + 1)
                 acc[d, k, c] = ops.nodeAccel(node, d + 1) + ag[k, d]
     ops.wipe()
-    return {"isolator_disp": u_iso, "floor_disp": disp, "floor_accel_abs": acc}
+    return {"isolator_disp": u_iso, "floor_disp": disp, "floor_accel_abs": acc, "n_ok": n_ok}
 
 
 def plan_building_one_call(ops, building, ag, dt: float, **kw) -> np.ndarray:

@@ -1,8 +1,8 @@
 """A shear building in plan on coupled isolators (issue 14 point 2).
 
 * a record along one axis gives the unidirectional ``time_history`` in that axis and rest in the
-  other (1e-12, in fact bit for bit) for every plan law whose plan form reduces to its
-  unidirectional law along an axis;
+  other (1e-12, in fact bit for bit, for every plan law that reduces to its unidirectional law
+  bit for bit along an axis; bouc_wen to rounding, see AXIS_RTOL);
 * an isotropic layer under a record along any azimuth moves along that azimuth as the
   unidirectional building does, and a rotated pair gives the rotated response;
 * a linear layer superposes the two directions; a coupled nonlinear one does not;
@@ -31,7 +31,14 @@ from structures.plan_history import TORSION
 TOY = {"k": 260.0, "r": 0.3, "d_b": 0.005}
 PARAMS = {"linear": {"k": 300.0, "c": 0.0}, "toy_bilinear": TOY, **SPECIMEN_PARAMS}
 # laws checked against the unidirectional building: those with a plan form here
-AXIS_LAWS = tuple(n for n in ("linear", "toy_bilinear", "plasticity", "bouc_wen") if n in plan_laws.names())
+AXIS_LAWS = tuple(n for n in ("linear", "toy_bilinear", "plasticity", "bouc_wen", "elastomeric_x", "hdr")
+                  if n in plan_laws.names())
+# Along one axis every plan law here is its unidirectional law bit for bit, and the plan
+# building the unidirectional building bit for bit (asserted to 1e-12), except bouc_wen: its
+# plan law's 2 x 2 local Newton rounds differently from the scalar one (1e-16 of the force per
+# step, rrfrei/laws/plan/bouc_wen.py), which the dynamics carry to up to 1.3e-12 in floor
+# accelerations (hypothesis buildings; 1e-13 on the example buildings).
+AXIS_RTOL = {"bouc_wen": 1e-10}
 
 
 def first_seconds(name: str, seconds: float, channel: int | None = None) -> ground_motions.Record:
@@ -58,7 +65,10 @@ def on_law(law: str, building: str = "three_story", **changes) -> ShearBuilding:
 
 
 def rel(a, ref) -> float:
-    return float(np.max(np.abs(np.asarray(a) - ref)) / np.max(np.abs(ref)))
+    """max |a - ref| / max |ref| (the absolute difference where ref is all zeros)."""
+    diff = float(np.max(np.abs(np.asarray(a) - ref)))
+    top = float(np.max(np.abs(ref)))
+    return diff / top if top > 0.0 else diff
 
 
 RESPONSE_ARRAYS = ("isolator_disp", "isolator_force", "floor_disp", "drift", "drift_ratio", "floor_accel_abs",
@@ -95,11 +105,36 @@ def test_a_record_along_one_axis_is_the_unidirectional_building(law, axis):
     ours = structures.plan_time_history(bld, None, None, ground, dt=rec.dt)
     assert np.max(np.abs(ref.isolator_disp)) > 0.03  # a nonlinear excursion, not a trickle
     along, across = (ours.x, ours.y) if axis == 0 else (ours.y, ours.x)
-    assert_same_response(along, ref, 1e-12)
+    assert_same_response(along, ref, AXIS_RTOL.get(law, 1e-12))
     assert_at_rest(across)
     assert rel(ours.isolator_plan_disp, np.abs(ref.isolator_disp)) <= 1e-12
     assert ours.isolator_plan_disp_max == pytest.approx(np.max(np.abs(ref.isolator_disp)), rel=1e-12)
     assert ours.energy_error == pytest.approx(ref.energy_error, rel=1e-6, abs=1e-14)
+
+
+@st.composite
+def buildings(draw):
+    """Random shear buildings (1 to 4 stories, either damping model) on a random plan law."""
+    n = draw(st.integers(1, 4))
+    masses = draw(st.lists(st.floats(10.0, 80.0), min_size=n, max_size=n))
+    stiffness = draw(st.lists(st.floats(2e4, 3e5), min_size=n, max_size=n))
+    law = draw(st.sampled_from(AXIS_LAWS))
+    iso = Isolator(law, PARAMS[law], draw(st.integers(1, 12)), draw(st.sampled_from((1.0, 3.0))))
+    return ShearBuilding(masses, stiffness, [3.0] * n, draw(st.floats(0.0, 0.1)), draw(st.floats(20.0, 80.0)),
+                         iso, damping=draw(st.sampled_from(("stiffness", "rayleigh"))))
+
+
+@settings(max_examples=12, deadline=None)
+@given(bld=buildings(), axis=st.integers(0, 1), scale=st.floats(0.3, 3.0))
+def test_any_building_under_a_one_axis_record_is_the_unidirectional_building(bld, axis, scale):
+    rec = first_seconds("elcentro", 3.0).scaled(scale)
+    ref = structures.time_history(bld, rec)
+    ground = np.zeros((rec.accel.size, 2))
+    ground[:, axis] = rec.accel
+    ours = structures.plan_time_history(bld, None, None, ground, dt=rec.dt)
+    along, across = (ours.x, ours.y) if axis == 0 else (ours.y, ours.x)
+    assert_same_response(along, ref, AXIS_RTOL.get(bld.isolator.law, 1e-12))
+    assert_at_rest(across)
 
 
 def test_a_stiffer_y_direction_is_the_unidirectional_building_with_those_stories():
@@ -120,7 +155,8 @@ def test_a_stiffer_y_direction_is_the_unidirectional_building_with_those_stories
 def test_an_isotropic_layer_moves_along_the_azimuth_of_a_one_component_record(law, theta):
     """Record a_g(t) along (cos t, sin t): the base moves along that line exactly as the
     unidirectional building moves under a_g (isotropic coupled laws: the circular yield surface
-    of plasticity, the vector z of Bouc-Wen with alpha2 = 0; Newton tol 1e-12 m)."""
+    of plasticity, the vector z of Bouc-Wen with alpha2 = 0, ElastomericX, HDR; Newton tol
+    1e-12 m)."""
     rec = first_seconds("elcentro", 4.0)
     bld = on_law(law)
     assert PARAMS[law].get("alpha2", 0.0) == 0.0  # k3 |u_i|^mu acts per component: not isotropic
@@ -135,7 +171,13 @@ def test_an_isotropic_layer_moves_along_the_azimuth_of_a_one_component_record(la
     assert rel(ours.isolator_plan_disp, np.abs(ref.isolator_disp)) <= 1e-9
 
 
-@pytest.mark.parametrize("law", AXIS_LAWS[1:])
+# ElastomericX's coupled Park-Wen keeps a per-axis sign term: a straight line at any azimuth
+# behaves as the unidirectional law, but an orbit is invariant only under the symmetries of the
+# square (its test below); the other laws are isotropic.
+ISOTROPIC = tuple(n for n in AXIS_LAWS if n not in ("linear", "elastomeric_x"))
+
+
+@pytest.mark.parametrize("law", ISOTROPIC)
 @settings(max_examples=3, deadline=None)
 @given(theta=st.floats(0.0, 2.0 * np.pi, allow_nan=False))
 def test_a_rotated_pair_gives_the_rotated_response_on_an_isotropic_layer(law, theta):
@@ -150,6 +192,20 @@ def test_a_rotated_pair_gives_the_rotated_response_on_an_isotropic_layer(law, th
     assert rel(turned.energy["isolator"], base.energy["isolator"]) <= 1e-8
 
 
+@pytest.mark.parametrize("law", AXIS_LAWS)
+def test_quarter_turns_and_mirror_images_of_a_pair_give_the_turned_response(law):
+    """The symmetries of the square (x -> y, y -> -x; y -> -y) turn the response with the
+    ground, for every law here (no law prefers a sign or an axis)."""
+    ag, dt = ferndale_pair(6.0)
+    bld = on_law(law)
+    base = structures.plan_time_history(bld, None, None, ag, dt=dt)
+    for m in (np.array([[0.0, -1.0], [1.0, 0.0]]), np.array([[1.0, 0.0], [0.0, -1.0]])):
+        turned = structures.plan_time_history(bld, None, None, ag @ m.T, dt=dt)
+        expected = base.isolator_disp @ m.T
+        assert np.max(np.abs(turned.isolator_disp - expected)) <= 1e-9 * base.isolator_plan_disp_max
+        assert rel(turned.energy["isolator"], base.energy["isolator"]) <= 1e-8
+
+
 def test_a_linear_layer_superposes_the_two_directions():
     ag, dt = ferndale_pair(8.0)
     bld = on_law("linear")
@@ -159,14 +215,19 @@ def test_a_linear_layer_superposes_the_two_directions():
         assert_same_response(r, ref, 1e-12)
 
 
-def test_a_coupled_layer_does_not_superpose_the_two_directions():
-    """The radial toy softens on |u|: two components push it beyond d_b together, so each axis
-    sees a softer layer than its own unidirectional analysis (by far more than rounding)."""
-    ag, dt = ferndale_pair(8.0)
-    bld = on_law("toy_bilinear")
+@pytest.mark.parametrize("law", AXIS_LAWS[1:])
+def test_a_coupled_layer_is_not_two_independent_unidirectional_analyses(law):
+    """Nonlinear coupled layers: the peak plan displacement of the plan analysis differs from
+    the vector sum of two unidirectional analyses (one per component) by far more than rounding:
+    3 to 10 % on the Ferndale pair (a circular yield surface yields earlier on a diagonal; the
+    radial toy softens on |u|)."""
+    ag, dt = ferndale_pair(10.0)
+    bld = on_law(law)
     ours = structures.plan_time_history(bld, None, None, ag, dt=dt)
-    ref_x = structures.time_history(bld, ground_motions.Record("x", dt, ag[:, 0]))
-    assert rel(ours.x.isolator_disp, ref_x.isolator_disp) > 1e-2
+    rx, ry = (structures.time_history(bld, ground_motions.Record(c, dt, ag[:, i]))
+              for i, c in enumerate("xy"))
+    independent = np.max(np.hypot(rx.isolator_disp, ry.isolator_disp))
+    assert abs(ours.isolator_plan_disp_max / independent - 1.0) > 0.02
 
 
 # --------------------------------------------------------------------- energy
@@ -268,6 +329,9 @@ def test_the_batch_gives_the_single_runs_peaks():
         (np.array([[0.0, 0.0], [0.1, np.nan], [0.0, 0.0]]), 0.01, r"accel\[1, 1\].*component y"),
         ("elcentro", 0.01, "ground must be"),
         (Pair("p", 0.01, np.zeros((5, 2))), 0.02, "dt = 0.02"),
+        (np.zeros((10, 2)), "fast", "dt = 'fast'"),
+        (Pair("p", 0.01, np.zeros((5, 2))), "fast", "dt = 'fast' is invalid for ground 'p'"),
+        (ground_motions.Record("one", 0.01, np.zeros(10)), None, "one component: use structures.time_hi"),
     ],
 )
 def test_bad_ground_is_refused_naming_the_problem(ground, dt, words):
@@ -298,9 +362,8 @@ def test_a_failed_newton_step_is_subdivided_and_reported():
     """Three Newton iterations are too few for Bouc-Wen's strong steps: those are retried in
     substeps (listed), and the response stays within 3 % of the converged one (the substeps
     integrate those steps more finely: the difference is time-step error, 1.4 % here)."""
-    law = AXIS_LAWS[-1]
     ag, dt = ferndale_pair(8.0)
-    bld = on_law(law)
+    bld = on_law("bouc_wen")
     ref = structures.plan_time_history(bld, None, None, ag, dt=dt)
     tight = structures.plan_time_history(bld, None, None, ag, dt=dt, max_iter=3)
     assert tight.subdivided_steps.size > 0
@@ -314,13 +377,13 @@ def test_a_step_that_fails_at_every_subdivision_raises_naming_ground_time_and_st
     ag, dt = ferndale_pair(8.0)
     with pytest.raises(structures.ConvergenceError,
                        match=r"ground 'ferndale': the step to t = .* s .*isolator displacement \("):
-        structures.plan_time_history(on_law(AXIS_LAWS[-1]), None, None, Pair("ferndale", dt, ag),
+        structures.plan_time_history(on_law("bouc_wen"), None, None, Pair("ferndale", dt, ag),
                                      max_iter=1, max_subdivisions=1)
 
 
 def test_the_batch_flags_failed_runs_with_nan_demands():
     ag, dt = ferndale_pair(8.0)
-    bld = on_law(AXIS_LAWS[-1])
+    bld = on_law("bouc_wen")
     P = np.tile(bld.isolator.packed(), (2, 1))
     out = structures.plan_time_history_batch(bld, None, P, ag, dt=dt, max_iter=1, max_subdivisions=0)
     assert not out["converged"].any() and (out["status"] != 0).all()
