@@ -138,15 +138,16 @@ def step(p, sc, u, v, dt, st, f, k):
     em1 = eta - 1.0
     em2 = eta - 2.0
     it = 0
-    znrm = 0.0
     tmp2 = 0.0
+    pw2 = 0.0
     while True:
         znrm = math.sqrt(z0 * z0 + z1 * z1)
         if znrm == 0.0:
             znrm = DBL_EPSILON
         tmp1 = z0 * du0 + z1 * du1
         tmp2 = gamma + beta * sgn(tmp1)
-        tmp3 = znrm ** (eta - 2.0) * tmp1 * tmp2
+        pw2 = znrm ** (eta - 2.0)
+        tmp3 = pw2 * tmp1 * tmp2
         tmp4 = znrm ** (eta - 4.0) * tmp2
         f0 = (z0 - zc0) - iuy * (A * du0 - z0 * tmp3)
         f1 = (z1 - zc1) - iuy * (A * du1 - z1 * tmp3)
@@ -173,7 +174,7 @@ def step(p, sc, u, v, dt, st, f, k):
     st[3] = z1
     if it >= MAX_ITER:
         return -2
-    tmp5 = znrm ** (eta - 2.0) * tmp2
+    tmp5 = pw2 * tmp2  # OpenSees recomputes pow(zNrm, eta-2) of the last iteration: same value
     r12 = du0 / du1
     r21 = du1 / du0
     if du0 * du1 == 0.0:
