@@ -31,6 +31,11 @@ r12 = d1/d2 and r21 = d2/d1 (both 0 when d1 d2 == 0) and the t_i of the last ite
     F_i  = cd v_i + fy z_i + ke u_i
     K_ij = delta_ij (cd/dt + ke) + fy dz_i/du_j
 
+This tangent is the element's, not the derivative of its step: applied to the increment, its
+hysteretic part gives fy (1/u_y)(d - z t_3) (the Park-Wen rate along d) when one component of d
+is 0 but *twice* that when both are non-zero (r12 d2 = d1 counts the cross term again), so a
+global Newton iteration on it converges linearly, as OpenSees' does.
+
 When ||d||_2 = sqrt(d1^2 + d2^2) is 0 (l.588) nothing is recomputed: force and tangent of the
 previous call, including the cd v term.
 

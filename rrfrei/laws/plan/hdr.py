@@ -42,6 +42,10 @@ its dKM/dDM typo (c4 (1 - c4) where c3 is meant; the force is never affected)::
     dR/dU  = b2 (2 KS2 U + uh^2 dKS2/dDS dDS/dU),  dn/dU = (I - n n^T)/dU
     dDelta/dU = -Delta_C b3 n / (1 + b3 dU)^2,  dmu/dU = (I - mu mu^T)(n dR/dU^T + R dn/dU)/|R n - F2_C|
 
+It is not the derivative of the step in plan: it holds Delta_C = |R_C n - F2_C| fixed although
+n turns with U, so the term -mu (dDelta_C/dU)^T / (1 + b3 dU) is missing (O(1) on a random walk;
+it vanishes in 1-D, where n = +-1).  Kept, since it steers OpenSees' global Newton iteration.
+
 Along one axis (the other component identically 0) every norm is sqrt(x^2 + 0) = |x| and every
 second component an exact 0, and the arithmetic on the first component is that of
 :mod:`rrfrei.laws.hdr` (which uses the same products for OpenSees' ``pow``), so forces and
