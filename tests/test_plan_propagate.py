@@ -114,3 +114,12 @@ def test_the_lower_bound_scales_the_force_like_parameters(three, post, pairs):
     np.testing.assert_allclose(lo.table["total_max_disp_m"], tor.factor * lo.table["iso_disp_peak_m"],
                                rtol=1e-14)
     assert any("x 0.85" in n for n in lo.notes)
+
+
+def test_a_thread_pool_gives_the_same_table_as_the_local_run(three, post, pairs, plan_rs):
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(2) as ex:
+        pooled = propagate_pairs(post, three, pairs, n_samples=4, seed=5, chunk_size=3, progress=False,
+                                 executor=ex)
+    pd.testing.assert_frame_equal(pooled.table, plan_rs.table)
