@@ -29,9 +29,10 @@ solved by elimination without pivoting (the pivot d_0,x + k_t,xx > 0 carries the
 1/(b h^2) m_0): du_y = (r_y - l r_x) / (a_yy - l a_xy), du_x = (r_x - a_xy du_y) / a_xx with
 l = a_yx / a_xx.  As in 1-D, after the first correction of a step the residual lives on the base
 DOFs alone, r_b = k_t,prev du_b,prev - (F - F_prev), and ||du||_2^2 = sum_d du_b,d^2 phi_d^T phi_d.
-With no excitation and no force in y (a record along x on an isotropic layer), every y quantity
-is an exact zero and each x operation is that of :mod:`structures.newmark`, so the x response is
-the unidirectional one bit for bit.
+With no excitation and no force in y (a record along x on a layer whose plan law gives F_y = 0
+and k_yx = 0 there), every y quantity is an exact zero and each x operation is that of
+:mod:`structures.newmark`, so the x response is the unidirectional one bit for bit wherever the
+plan law is its unidirectional law bit for bit along the axis (bouc_wen: to rounding).
 
 A step whose Newton iteration fails (no convergence in ``max_iter``, a law status < 0 or a
 non-finite force) is retried from the committed state in 2, 4, ... 2^max_levels equal substeps
