@@ -24,7 +24,9 @@ U = np.linspace(0.0, 0.02, 20)
         ("elastomeric_x", dict(fy=1.0, alpha=0.2, gr=500.0, d2=0.08, tr=0.002), U,
          r"missing parameter\(s\) n"),
         ("bouc_wen", BW, [0.0, np.nan, 0.01], r"disp is not finite at index 1"),
-        ("bouc_wen", BW, np.zeros((4, 2)), r"disp must be a 1-D array, got shape \(4, 2\)"),
+        # (n, 2) is a path in plan (bouc_wen has a bidirectional form): other shapes are refused
+        ("bouc_wen", BW, np.zeros((4, 2, 1)), r"disp must be a 1-D array, got shape \(4, 2, 1\)"),
+        ("bouc_wen", BW, np.zeros((4, 3)), r"disp must be an \(n, 2\) array .*got shape \(4, 3\)"),
         ("bouc_wen", BW, [], r"disp must have at least 1"),
     ],
 )

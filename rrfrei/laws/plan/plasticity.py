@@ -32,7 +32,8 @@ Rounding.  OpenSees writes the return as ``dGamma*qTrial(i)/qTrialNorm`` and
 ``qYield*qTrial(i)/qTrialNorm``, i.e. (a q_i) / |q|; here n = q / |q| is formed first and
 multiplied, (a) n_i, which differs by at most an ulp or two of the result and makes a path along
 one axis (n = (+-1, 0) exactly, |q| = sqrt(q_x^2) = |q_x|) reproduce the unidirectional law
-:mod:`rrfrei.laws.plasticity` bit for bit (same expressions, same ``powabs``).
+:mod:`rrfrei.laws.plasticity` bit for bit (same expressions; |u_i|^mu by the same ``powabs``,
+products for mu = 1, 2, 3 where OpenSees calls ``pow``: an ulp at most).
 """
 
 import math
