@@ -137,16 +137,7 @@ def propagate(
     -------
     ResponseSet
     """
-    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 1:
-        raise ValueError(f"n_samples must be a positive integer, got {n_samples!r}")
-    if isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
-        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    if executor is not None and not hasattr(executor, "submit"):
-        raise ValueError(
-            f"executor must have a .submit method (concurrent.futures or Dask), got {executor!r}"
-        )
+    check_run_options(n_samples, chunk_size, seed, executor)
     n_samples, chunk_size, seed = int(n_samples), int(chunk_size), int(seed)
     spectrum = scales if isinstance(scales, SpectrumScaling) else None
     scale_values = resolve_scales(spectrum.stripes if spectrum else scales)
@@ -160,6 +151,73 @@ def propagate(
         recs = [r for r, _ in pairs]
         record_factors = {r.name: float(f) for r, f in pairs}
         im_label = "intensity (multiple of the target spectrum) [-]"
+    run = prepare_run(posterior, bld, n_samples, seed, limits)
+
+    # ---- identity of the inputs (the store refuses anything else)
+    description = {
+        "law": run.law,
+        "building": run.building_name,
+        "records": [r.name for r in recs],
+        "scales": list(scale_values),
+        "record_factors": [repr(record_factors[r.name]) for r in recs],
+        "n_samples": n_samples,
+        "seed": seed,
+        "chunk_size": chunk_size,
+    }
+    fingerprint = input_fingerprint(description, bld, run.params, recs)
+
+    def task_args(chunk):
+        _, ri, s, a, b = chunk
+        return (bld, recs[ri], s, run.params[a:b])
+
+    def rows(chunk, out):
+        _, ri, s, a, b = chunk
+        return chunk_table(out, np.arange(a, b), recs[ri].name, s, run.d_max, run.length_scale)
+
+    table = run_chunks(make_chunks(len(recs), scale_values, n_samples, chunk_size), run_chunk, task_args,
+                       rows, executor=executor, store=store, fingerprint=fingerprint,
+                       description=description, progress=progress)
+    return response_set(run, table, tuple(r.name for r in recs), scale_values, seed, im_label,
+                        record_factors, stacklevel=3)
+
+
+# ---------------------------------------------------------------------------------------------
+# the machinery shared with structures.plan_propagate (pairs of records on the plan building)
+# ---------------------------------------------------------------------------------------------
+def check_run_options(n_samples, chunk_size, seed, executor) -> None:
+    """ValueError naming a bad ``n_samples``, ``chunk_size``, ``seed`` or ``executor``."""
+    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 1:
+        raise ValueError(f"n_samples must be a positive integer, got {n_samples!r}")
+    if isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
+        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    if executor is not None and not hasattr(executor, "submit"):
+        raise ValueError(
+            f"executor must have a .submit method (concurrent.futures or Dask), got {executor!r}"
+        )
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PreparedRun:
+    """The posterior draws checked against the building, with the limits and notes of a run."""
+
+    law: str
+    spec: Any
+    params: np.ndarray
+    cal_range: tuple[float, float] | None
+    d_max: float | None
+    length_scale: float
+    limits: dict
+    notes: list
+    building_name: str
+
+
+def prepare_run(posterior, bld, n_samples: int, seed: int, limits) -> PreparedRun:
+    """Draw the posterior, check its law against the building's isolator, set the limits.
+
+    The specimen checks (:func:`structures.specimen.specimen_checks`) warn, never refuse.
+    """
     law_name, draws, cal_range = resolve_posterior(posterior, n_samples, seed)
     iso = bld.isolator
     bld_law = get_law(iso.law).name
@@ -185,39 +243,46 @@ def propagate(
     for msg in specimen_checks(bld, np.median(params, axis=0),
                                None if d_max is None else length_scale * d_max):
         notes.append(msg)
-        warnings.warn(msg, SpecimenWarning, stacklevel=2)
-    building_name = str(getattr(bld, "name", "") or "")
+        warnings.warn(msg, SpecimenWarning, stacklevel=3)
+    return PreparedRun(bld_law, spec, params, cal_range, d_max, length_scale, lim, notes,
+                       str(getattr(bld, "name", "") or ""))
 
-    # ---- identity of the inputs (the store refuses anything else)
-    description = {
-        "law": bld_law,
-        "building": building_name,
-        "records": [r.name for r in recs],
-        "scales": list(scale_values),
-        "record_factors": [repr(record_factors[r.name]) for r in recs],
-        "n_samples": n_samples,
-        "seed": seed,
-        "chunk_size": chunk_size,
-    }
+
+def input_fingerprint(description: Mapping, bld, params: np.ndarray, records: Sequence) -> str:
+    """SHA-256 of the inputs: the description, the building, the draws and every record's dt and
+    acceleration (1-D or (n, 2) arrays alike)."""
     h = hashlib.sha256(json.dumps(description, sort_keys=True).encode())
     h.update(json.dumps(_stable(bld), sort_keys=True).encode())
     h.update(params.tobytes())
-    for r in recs:
+    for r in records:
         h.update(repr(float(r.dt)).encode())
         h.update(np.ascontiguousarray(r.accel).tobytes())
-    fingerprint = h.hexdigest()
+    return h.hexdigest()
 
-    # ---- deterministic chunks
+
+def make_chunks(n_records: int, scale_values: Sequence[float], n_samples: int,
+                chunk_size: int) -> list[tuple]:
+    """Deterministic chunks ``(id, record index, scale, first draw, end draw)``."""
     chunks = []
     n_blocks = math.ceil(n_samples / chunk_size)
-    for ri in range(len(recs)):
+    for ri in range(n_records):
         for si, s in enumerate(scale_values):
             for ci in range(n_blocks):
                 a, b = ci * chunk_size, min(n_samples, (ci + 1) * chunk_size)
                 chunks.append((f"r{ri:03d}-s{si:03d}-c{ci:05d}", ri, s, a, b))
-    order = [c[0] for c in chunks]
+    return chunks
 
-    st = None if store is None else ParquetStore(store, fingerprint, description)
+
+def run_chunks(chunks, task, task_args, rows, *, executor, store, fingerprint: str,
+               description: Mapping, progress: bool) -> pd.DataFrame:
+    """Run every chunk not already in the store; return all rows in chunk order.
+
+    ``task(*task_args(chunk), [threads])`` runs a chunk (here, or submitted to ``executor`` with
+    the thread count ``cores // workers`` appended); ``rows(chunk, out)`` turns its output into
+    the chunk's tidy rows, written to the Parquet store when there is one.
+    """
+    order = [c[0] for c in chunks]
+    st = None if store is None else ParquetStore(store, fingerprint, dict(description))
     done = st.done() if st is not None else set()
     frames: dict[str, pd.DataFrame] = {}
     todo = [c for c in chunks if c[0] not in done]
@@ -233,26 +298,23 @@ def propagate(
             bar = None
 
     def finish(chunk, out):
-        cid, ri, s, a, b = chunk
-        frame = chunk_table(out, np.arange(a, b), recs[ri].name, s, d_max, length_scale)
+        frame = rows(chunk, out)
         if st is not None:
-            st.write(cid, frame)
+            st.write(chunk[0], frame)
         else:
-            frames[cid] = frame
+            frames[chunk[0]] = frame
         if bar is not None:
             bar.update(1)
 
     try:
         if executor is None:
             for chunk in todo:
-                _, ri, s, a, b = chunk
-                finish(chunk, run_chunk(bld, recs[ri], s, params[a:b]))
+                finish(chunk, task(*task_args(chunk)))
         else:
             threads = max(1, (os.cpu_count() or 1) // workers(executor))
             futures = {}
             for chunk in todo:
-                _, ri, s, a, b = chunk
-                fut = submit(executor, run_chunk, bld, recs[ri], s, params[a:b], threads)
+                fut = submit(executor, task, *task_args(chunk), threads)
                 futures[fut] = chunk
             for fut in as_completed(executor, list(futures)):
                 finish(futures[fut], fut.result())
@@ -260,26 +322,33 @@ def propagate(
         if bar is not None:
             bar.close()
 
-    table = st.read(order) if st is not None else pd.concat([frames[c] for c in order], ignore_index=True)
+    return st.read(order) if st is not None else pd.concat([frames[c] for c in order], ignore_index=True)
+
+
+def response_set(run: PreparedRun, table: pd.DataFrame, records: tuple[str, ...],
+                 scale_values: tuple[float, ...], seed: int, im_label: str,
+                 record_factors: dict, *, stacklevel: int = 2) -> ResponseSet:
+    """The :class:`ResponseSet` of a finished run (notes on runs that did not converge)."""
+    notes = list(run.notes)
     if not table.empty:
         table["extrapolated"] = table["extrapolated"].astype("boolean")
     n_bad = int((~table["converged"].astype(bool)).sum())
     if n_bad:
         notes.append(f"{n_bad} of {len(table)} analyses did not converge; summaries exclude them")
-        warnings.warn(notes[-1], RuntimeWarning, stacklevel=2)
-    draws_out = pd.DataFrame(params, columns=list(spec.param_names))
+        warnings.warn(notes[-1], RuntimeWarning, stacklevel=stacklevel)
+    draws_out = pd.DataFrame(run.params, columns=list(run.spec.param_names))
     draws_out.index.name = "sample"
     return ResponseSet(
         table=table,
         draws=draws_out,
-        law=bld_law,
-        records=tuple(r.name for r in recs),
+        law=run.law,
+        records=records,
         scales=scale_values,
         seed=seed,
-        limits=lim,
-        calibrated_range=cal_range,
-        length_scale=length_scale,
-        building=building_name,
+        limits=run.limits,
+        calibrated_range=run.cal_range,
+        length_scale=run.length_scale,
+        building=run.building_name,
         im_label=im_label,
         record_factors=record_factors,
         notes=tuple(notes),

@@ -191,6 +191,23 @@ def propagation_reading(rs: Any, summary: pd.DataFrame, exceed: pd.DataFrame, sp
     return reading
 
 
+def orbit_reading(ans: Any, pair: str) -> str:
+    """Step 6, both components at once: the plan displacement against each direction's."""
+    per = ans.per_pair[ans.per_pair["bound"] == "nominal"].iloc[0]
+    plan, dx, dy = per["plan_disp_max_m"], per["disp_x_max_m"], per["disp_y_max_m"]
+    gov = ans.design().loc["governing"]
+    return (
+        f"Under both components of the {pair} pair at once (the plan building, the isolator's coupled "
+        f"law) the isolator reaches {fmt(1e3 * plan, 3)} mm in plan (the vector sum at each instant), "
+        f"while its largest x and y displacements are {fmt(1e3 * dx, 3)} and {fmt(1e3 * dy, 3)} mm: "
+        f"{pct(plan / max(dx, dy) - 1.0)} more than the larger direction alone; over the nominal and "
+        f"the two bound isolators the governing design displacement is "
+        f"{fmt(1e3 * ans.design_displacement, 3)} mm (the circle of the orbit plot), the base shear "
+        f"{fmt(gov['base_shear_x_max_kN'], 3)} kN in x and {fmt(gov['base_shear_y_max_kN'], 3)} kN in y. "
+        "No torsion is modelled: the total maximum displacement is the plan displacement at the centre."
+    )
+
+
 def shake_table_reading(res: Any, *, quick: bool) -> str:
     """Step 7: the real building: extrapolation, diagnosis with its evidence, gap before and after."""
     rep = res.report

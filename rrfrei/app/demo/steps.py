@@ -16,7 +16,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from ground_motions import available
+from ground_motions import available, load_pair
 from rrfrei.app.demo import figures, prose
 from rrfrei.app.demo.context import EXPECTED_FAILURES, SYNTHETIC, TESTS, DemoContext, Step
 from rrfrei.app.report import Section, fmt
@@ -31,6 +31,7 @@ from rubber.fit import combinations
 from rubber.io import load_vhb4910
 from rubber.study import synthetic_test
 from structures import Isolator, load_building
+from structures.plan_design import DEFAULT_LAMBDAS, plan_design_answers, plot_orbit
 from structures.propagate import propagate
 from structures.shake_table_gap import CHANNELS as CHANNELS_ST
 from structures.shake_table_gap import shake_table_gap
@@ -39,6 +40,9 @@ from structures.shake_table_report import gap_table as shake_table_gap_table
 
 __all__ = ["STEPS", "step_calibrate", "step_compare", "step_gap", "step_propagate", "step_rubber",
            "step_shake_table", "step_tests", "step_validate"]
+
+ORBIT_PAIR = "santamonica"
+"""The bundled record pair of the propagation step's orbit plot (the shortest: 60 s at 0.02 s)."""
 
 FIT_PANELS = 4
 """Laws calibrated in step 2: one panel each of its 2 x 2 figure (the first of ``settings.laws``)."""
@@ -283,6 +287,25 @@ def step_propagate(ctx: DemoContext, sec: Section) -> None:
                    "Exceedance curves of the peak isolator displacement.")
     sec.reading = prose.propagation_reading(rs, summary, exceed, split, building=s.building,
                                             count=iso.count, law=best, scale=scale)
+    # both horizontal components at once: one bundled pair on the plan building (coupled isolator
+    # law), nominal and ASCE 7-22 bound properties, the orbit against the design displacement
+    pair = load_pair(ORBIT_PAIR)
+    ans = plan_design_answers(building, [pair], bounds=DEFAULT_LAMBDAS)
+    ctx.results["plan_answers"] = ans
+    sec.add_table("plan_answers", ans.table().drop(columns="lambda"),
+                  f"ASCE 7-22 Chapter 17 answers of the {ORBIT_PAIR} pair (both components at once) on the "
+                  f"plan building with the MAP {best} isolator, nominal and lambda = "
+                  f"{DEFAULT_LAMBDAS[0]:g} / {DEFAULT_LAMBDAS[1]:g} bounds: maximum plan (vector-sum) "
+                  "isolator displacement [m], per direction [m], total maximum displacement (no torsion: "
+                  "the plan displacement) [m], base shear per direction [kN]; one pair, so the design "
+                  "value is the maximum.")
+    others = {f"{b} bound (lambda {ans.lambdas[b]:g})": ans.orbits[(b, pair.name)]
+              for b in ("lower", "upper")}
+    sec.add_figure("orbit", plot_orbit(ans.orbits[("nominal", pair.name)], ans.design_displacement,
+                                       others=others, title=f"{pair.name}: isolator orbit in plan"),
+                   "Isolator displacement y against x [m] under both components of the pair, with the "
+                   "circle at the governing design displacement.")
+    sec.reading += " " + prose.orbit_reading(ans, pair.name)
 
 
 # ---------------------------------------------------------------------------------------------
