@@ -24,7 +24,9 @@ z_C), the sign terms held fixed in the Jacobian::
 the 2x2 system by Cramer's rule, iterating while ||dz||_2 >= 1e-8 and iter < 100.  Status -1
 when |J11| or |J22| <= DBL_EPSILON (zero Jacobian), -2 when iter reaches 100; the trial z keeps
 the iterate reached, as the element's member does.  Then (l.643-666), with the increment ratios
-r12 = d1/d2 and r21 = d2/d1 (both 0 when d1 d2 == 0) and the t_i of the last iteration::
+r12 = d1/d2 and r21 = d2/d1 (both 0 when d1 d2 == 0, and, a deviation from OpenSees, when
+a ratio overflows: a component below ~1e-300 of the other, where OpenSees' tangent is inf or
+nan; the force is unchanged) and the t_i of the last iteration::
 
     dz1/du1 = (1/u_y)(1   - z1 (z1 t1 + z2 t2 r21))    dz1/du2 = (1/u_y)(r12 - z1 (z1 t1 r12 + z2 t2))
     dz2/du1 = (1/u_y)(r21 - z2 (z1 t1 + z2 t2 r21))    dz2/du2 = (1/u_y)(1   - z2 (z1 t1 r12 + z2 t2))
@@ -142,6 +144,17 @@ def step(p, sc, u, v, dt, st, f, k):
     dz12 = ruy * (r12 - z1 * (z1 * t1 * r12 + z2 * t2))
     dz21 = ruy * (r21 - z2 * (z1 * t1 + z2 * t2 * r21))
     dz22 = ruy * (1.0 - z2 * (z1 * t1 * r12 + z2 * t2))
+    if not (math.isfinite(dz11) and math.isfinite(dz12) and math.isfinite(dz21)
+            and math.isfinite(dz22)):
+        # An increment component ~1e-300 of the other overflows r12 or r21 (and so OpenSees'
+        # tangent: inf/nan, harmless to its imposed-displacement analyses, fatal to a Newmark
+        # step).  That component is taken as the exact zero it is physically (the d1 d2 == 0
+        # branch): the force is unchanged, the tangent deviates from OpenSees only where
+        # OpenSees' is not finite.
+        dz11 = ruy * (1.0 - z1 * z1 * t1)
+        dz12 = -ruy * z1 * z2 * t2
+        dz21 = -ruy * z2 * z1 * t1
+        dz22 = ruy * (1.0 - z2 * z2 * t2)
     f[0] = cd * v[0] + fy * z1 + ke * u[0]
     f[1] = cd * v[1] + fy * z2 + ke * u[1]
     k[0, 0] = cd / dt + fy * dz11 + ke
