@@ -68,3 +68,29 @@ def test_a_strong_softening_test_converges_in_a_few_thousand_steps(converged):
     j = cal.sampled.index("sigma")
     assert lo[j] <= SIGMA <= hi[j]
     assert -0.7 < cal.summary.loc["alpha2", "mean"] < -0.5
+
+
+def test_the_posterior_file_of_a_2401_sample_test_is_at_most_10_mb(converged, tmp_path):
+    """Issue 16: <= 10 MB per posterior.  The stored draws are capped by the pointwise
+    log-likelihood's size (it was 992 draws x 2,401 samples in float64, 24.9 MB with the
+    predictive draws), the file holds it in float32, and LOO read back from the file equals
+    the in-memory one to float32 rounding."""
+    from rrfrei.calibration import Calibration
+    from rrfrei.calibration.compare import _az
+    from rrfrei.calibration.results import MAX_LOGLIK_VALUES
+
+    cal = converged
+    path = cal.to_netcdf(tmp_path / "posterior.nc")
+    assert path.stat().st_size <= 10e6
+    draws, points = cal.theta().shape[0], cal.test.disp.size
+    assert 2 * cal.diagnostics["walkers"] <= draws and draws * points <= MAX_LOGLIK_VALUES
+    back = Calibration.from_netcdf(path)
+    stored = back.idata.log_likelihood["force"].values
+    assert stored.dtype == np.float32
+    np.testing.assert_allclose(stored, cal.idata.log_likelihood["force"].values, rtol=1e-6, atol=1e-6)
+    np.testing.assert_array_equal(back.theta(), cal.theta())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        loo_file = _az().loo(back.idata, var_name="force").elpd_loo
+        loo_mem = _az().loo(cal.idata, var_name="force").elpd_loo
+    assert loo_file == pytest.approx(loo_mem, rel=1e-5)

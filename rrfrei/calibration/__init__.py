@@ -278,9 +278,9 @@ def calibrate(
     tmax = float(np.nanmax(res.tau)) if np.any(np.isfinite(res.tau)) else float("nan")
     burn = res.burn
     thin = max(1, int(tmax / 2)) if math.isfinite(tmax) else 1
-    from rrfrei.calibration.results import MAX_DRAWS, MAX_DRAWS_DENSE
+    from rrfrei.calibration.results import draws_cap
 
-    cap = MAX_DRAWS_DENSE if problem.subsampled else MAX_DRAWS
+    cap = draws_cap(problem.n_like, problem.subsampled, nw)
     while ((n_steps - burn + thin - 1) // thin) * nw > cap and thin < n_steps:
         thin += 1
     # MAP: the best of the optimum and every sample
