@@ -64,6 +64,7 @@ def test_a_strong_softening_test_converges_in_a_few_thousand_steps(converged):
     cal = converged
     assert cal.converged and cal.stopped_by == "converged", cal.diagnostics["note"]
     assert cal.diagnostics["steps"] <= 3000
+    assert "hardening force" in cal.diagnostics["sampling_coordinates"]
     lo, hi = np.quantile(cal.theta(), [0.005, 0.995], axis=0)
     j = cal.sampled.index("sigma")
     assert lo[j] <= SIGMA <= hi[j]
@@ -94,3 +95,63 @@ def test_the_posterior_file_of_a_2401_sample_test_is_at_most_10_mb(converged, tm
         loo_file = _az().loo(back.idata, var_name="force").elpd_loo
         loo_mem = _az().loo(cal.idata, var_name="force").elpd_loo
     assert loo_file == pytest.approx(loo_mem, rel=1e-5)
+
+
+# ---------------------------------------------------------------------------------------------
+# sampling coordinates (rrfrei.calibration.reparam): exact map back, right Jacobian, right choice
+# ---------------------------------------------------------------------------------------------
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from rrfrei.calibration.reparam import Coordinates, Hardening, sampling_coordinates  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(k=st.floats(1.0, 1e6), a2=st.floats(-1.0, 1.0), mu=st.floats(1.0, 10.0),
+       d=st.floats(1e-3, 1.0), ik=st.sampled_from([0, None]), imu=st.sampled_from([2, None]))
+def test_the_hardening_coordinates_map_back_exactly_with_the_stated_jacobian(k, a2, mu, d, ik, imu):
+    """theta -> (h = alpha2 k d^mu) -> theta is the identity to rounding, and log|det dtheta/dphi|
+    equals the log determinant of the map's finite-difference Jacobian (central differences)."""
+    c = Hardening(d, 1, ik, imu, k_fixed=k, mu_fixed=mu)
+    theta = np.array([[k, a2, mu, 0.3]])
+    phi = c.to_sampling(theta)
+    np.testing.assert_allclose(c.to_law(phi), theta, rtol=1e-12, atol=1e-15)
+    assert phi[0, 1] == pytest.approx(a2 * k * d**mu, rel=1e-12, abs=1e-300)
+    J = np.empty((4, 4))
+    for j in range(4):
+        step = 1e-6 * max(abs(phi[0, j]), 1e-3)
+        e = np.zeros((1, 4))
+        e[0, j] = step
+        J[:, j] = (c.to_law(phi + e)[0] - c.to_law(phi - e)[0]) / (2 * step)
+    assert c.log_jacobian(phi)[0] == pytest.approx(np.log(abs(np.linalg.det(J))), abs=1e-5)
+
+
+def test_alpha2_is_sampled_as_a_hardening_force_only_when_the_data_show_one(test_data):
+    """Hardening at the optimum (|alpha2| >= 3 Laplace sd): h; none (alpha2 = 0, its posterior
+    then a funnel that h samples badly): the law's own coordinates."""
+    pb = setup_problem(test_data, "bouc_wen")
+    theta = np.array([TRUTH[n] for n in pb.free] + [SIGMA])
+    c = sampling_coordinates(pb, theta, alpha2_sd=0.03)
+    assert isinstance(c, Hardening) and "hardening force" in c.name
+    flat = theta.copy()
+    flat[pb.names.index("alpha2")] = 0.05
+    assert type(sampling_coordinates(pb, flat, alpha2_sd=0.03)) is Coordinates
+    assert type(sampling_coordinates(pb, theta, alpha2_sd=None)) is Coordinates
+    pb_fixed = setup_problem(test_data, "bouc_wen", fixed={"alpha2": 0.0, "mu": 2.0})
+    assert type(sampling_coordinates(pb_fixed, theta[[0, 1, 2, 5, 6, 7]], 0.03)) is Coordinates
+
+
+def test_the_chain_is_stored_in_law_parameters_with_the_law_posterior(test_data):
+    """The ensemble moves in h, but every stored sample is a law parameter set whose stored log
+    probability is the law posterior there (no Jacobian), so the MAP and every result are in the
+    law's own parameters; and the run says which coordinates it sampled in."""
+    from rrfrei.calibration.sampler import run_chain
+
+    pb = setup_problem(test_data, "bouc_wen")
+    theta0 = np.array([TRUTH[n] for n in pb.free] + [SIGMA])
+    res = run_chain(pb, theta0, walkers=32, steps=12, seed=3, checkpoint=None, progress=False)
+    assert "hardening force" in res.coordinates
+    flat = res.chain.reshape(-1, pb.ndim)
+    np.testing.assert_allclose(res.log_prob.reshape(-1), pb.log_prob(flat), rtol=1e-10)
+    a2 = flat[:, pb.names.index("alpha2")]
+    assert np.all((a2 > -1.0) & (a2 < 0.0))  # alpha2 itself, not h = alpha2 k d^mu (~ -10 kN)

@@ -294,6 +294,7 @@ def calibrate(
         "note": res.tau_note, "converged": False, "stopped_by": res.stopped_by,
         "max_steps": int(max_steps), "time_budget": budget.seconds,
         "resumed_steps": int(res.resumed_steps), "points": problem.n_points,
+        "sampling_coordinates": res.coordinates,
         "likelihood_points": problem.n_like,
         "likelihood_stride": int(problem.lik_idx[1] - problem.lik_idx[0]) if problem.n_like > 1 else 1,
         "ess_bulk_chain": res.ess_bulk, "ess_tail_chain": res.ess_tail, "rhat_chain": res.rhat,

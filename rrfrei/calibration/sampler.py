@@ -6,18 +6,19 @@
    the best of a batch of prior draws.  The result is the starting point, not the reported MAP
    alone: the MAP reported is the best of the optimum and every posterior sample.
 2. :func:`run_chain` draws the walkers from the Laplace approximation there (:func:`_ball`) and
-   runs ``emcee`` with a differential-evolution move mixture (ter Braak 2006; Nelson et al.
-   2014), which copes with the strongly correlated parameters of hysteresis laws better than the
-   stretch move.  With ``steps=None`` it runs in chunks of :data:`CHECK` steps until, after
-   burn-in (:func:`burn_in`), every sampled quantity has a bulk and a tail effective sample size
-   >= :data:`ESS_TARGET` (400) and a rank-normalised split R-hat < :data:`RHAT_STOP`, walkers
-   taken as chains (Vehtari et al. 2021), and the kept chain is >= :data:`MIN_TAU` (10)
-   integrated autocorrelation times long with a stable estimate of tau; at most ``max_steps``.
-   The rule used to be "50 tau with tau changing < 5 %" (Foreman-Mackey et al. 2013), a
-   guard for estimating tau itself from one chain; with 32 walkers 50 tau is an ESS of ~1,600,
-   four times what the reported means and 95 % intervals need, and it tripled the run time.
-   The ESS rule targets the quantities reported; the tau conditions keep a chain whose tau is
-   still growing (ESS over-estimated) from stopping early.
+   runs ``emcee``, in the sampling coordinates of :mod:`.reparam` (the law's worst ridge removed;
+   the chain is stored in law parameters), with a differential-evolution move mixture (ter Braak
+   2006; Nelson et al. 2014), which copes with the strongly correlated parameters of hysteresis
+   laws better than the stretch move.  With ``steps=None`` it runs in chunks of :data:`CHECK` steps
+   until, after burn-in (:func:`burn_in`), every sampled quantity has a bulk and a tail effective
+   sample size >= :data:`ESS_TARGET` (400) and a rank-normalised split R-hat < :data:`RHAT_STOP`,
+   walkers taken as chains (Vehtari et al. 2021), and the kept chain is >= :data:`MIN_TAU` (10)
+   integrated autocorrelation times long with a stable estimate of tau; at most ``max_steps``. The
+   rule used to be "50 tau with tau changing < 5 %" (Foreman-Mackey et al. 2013), a guard for
+   estimating tau itself from one chain; with 32 walkers 50 tau is an ESS of ~1,600, four times
+   what the reported means and 95 % intervals need, and it tripled the run time. The ESS rule
+   targets the quantities reported; the tau conditions keep a chain whose tau is still growing
+   (ESS over-estimated) from stopping early.
 3. ``checkpoint=path`` stores the chain in emcee's HDF5 layout every :data:`CHECK` steps (or
    :data:`FLUSH_SECONDS`) plus the optimum in the group ``rrfrei``; rerunning with the same path
    resumes from the last stored step, so an interrupted and a complete run end with the same
@@ -41,6 +42,7 @@ from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.calibration.likelihood import Problem
 from rrfrei.calibration.priors import cube_range
+from rrfrei.calibration.reparam import sampling_coordinates
 
 __all__ = ["find_map", "run_chain", "ensemble_size", "ChainResult", "CHECK", "MAX_STEPS"]
 
@@ -268,6 +270,7 @@ class ChainResult:
     ess_tail: float = float("nan")
     rhat: float = float("nan")
     resumed_steps: int = 0  # steps found in the checkpoint
+    coordinates: str = "law parameters"  # the sampling coordinates (rrfrei.calibration.reparam)
 
 
 LAPLACE_STEP = 1e-6
@@ -308,7 +311,21 @@ def laplace_cov(problem: Problem, theta0: np.ndarray) -> np.ndarray | None:
     return cov if np.all(np.isfinite(cov)) else None
 
 
-def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generator) -> np.ndarray:
+def laplace_sd(problem: Problem, theta0: np.ndarray, cov: np.ndarray | None) -> np.ndarray | None:
+    """Laplace standard deviations of the free law parameters at ``theta0`` in their own units
+    (``cov`` from :func:`laplace_cov`, mapped by the cube's slope ``dx/dz``); None without ``cov``."""
+    k = len(problem.free)
+    if cov is None or k == 0:
+        return None
+    cube = _Cube(problem)
+    z0 = cube.z_free(theta0[:k])[0]
+    h = 1e-7
+    slope = (cube.x_free(z0 + h)[0] - cube.x_free(z0 - h)[0]) / (2 * h)
+    return np.sqrt(np.diag(cov)) * np.abs(slope)
+
+
+def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generator,
+          cov: np.ndarray | None | str = "compute") -> np.ndarray:
     """Walkers drawn from the Laplace approximation at ``theta0``, each with finite log posterior.
 
     Law parameters: ``N(z0, Sigma)`` in unit-cube coordinates (:func:`laplace_cov`); noise: sigma
@@ -322,7 +339,8 @@ def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generato
     cube = _Cube(problem)
     k = len(problem.free)
     n = problem.n_like
-    cov = laplace_cov(problem, theta0) if k else None
+    if isinstance(cov, str):
+        cov = laplace_cov(problem, theta0) if k else None
     chol = np.linalg.cholesky(cov) if cov is not None else 1e-3 * np.eye(k)
     z = cube.z_free(theta0[:k])[0] if k else np.zeros(0)
     z_lo, z_hi = cube.support()
@@ -643,12 +661,26 @@ def run_chain(
         raise ValueError(f"max_steps must be an integer >= 2, got {max_steps!r}")
     store = _Store(checkpoint, nw, ndim)
     resumed = store.n
-    sampler = emcee.EnsembleSampler(nw, ndim, problem.log_prob, vectorize=True, moves=moves())
+    k = len(problem.free)
+    cov = laplace_cov(problem, theta0) if k else None
+    sd = laplace_sd(problem, theta0, cov)
+    ia = problem.free.index("alpha2") if "alpha2" in problem.free else None
+    coords = sampling_coordinates(problem, theta0, None if sd is None or ia is None else float(sd[ia]))
+
+    def log_prob(phi: np.ndarray) -> np.ndarray:
+        """The law posterior in the sampling coordinates: times |d theta / d phi|."""
+        lp = problem.log_prob(coords.to_law(phi))
+        ok = np.isfinite(lp)
+        lp[ok] += coords.log_jacobian(phi[ok])
+        return lp
+
+    sampler = emcee.EnsembleSampler(nw, ndim, log_prob, vectorize=True, moves=moves())
     if resumed:
-        state = emcee.State(store.chain[-1].copy(), log_prob=store.logp[-1].copy())
+        phi = coords.to_sampling(store.chain[-1])
+        state = emcee.State(phi, log_prob=store.logp[-1] + coords.log_jacobian(phi))
         sampler.random_state = np.random.RandomState([int(seed), resumed]).get_state()
     else:
-        state = emcee.State(_ball(problem, theta0, nw, np.random.default_rng(seed)))
+        state = emcee.State(coords.to_sampling(_ball(problem, theta0, nw, np.random.default_rng(seed), cov)))
         sampler.random_state = np.random.RandomState(seed).get_state()
     evals0 = problem.n_evals
     note = ""
@@ -678,8 +710,8 @@ def run_chain(
                 state = new
                 acc += np.any(new.coords != prev, axis=1)  # a rejected proposal keeps the walker
                 prev = new.coords.copy()
-                new_c.append(prev)
-                new_l.append(new.log_prob.copy())
+                new_c.append(coords.to_law(prev))  # stored in law parameters
+                new_l.append(new.log_prob - coords.log_jacobian(prev))
                 bar.update(1)
                 if budget is not None and budget.expired():
                     break
@@ -731,7 +763,7 @@ def run_chain(
         converged_tau=long_enough and stable and enough, tau_note=note,
         evals=problem.n_evals - evals0, seconds=time.perf_counter() - t0, stopped_by=stopped_by,
         burn=chk.burn, ess_bulk=chk.ess_bulk, ess_tail=chk.ess_tail, rhat=chk.rhat,
-        resumed_steps=resumed,
+        resumed_steps=resumed, coordinates=coords.name,
     )
 
 
