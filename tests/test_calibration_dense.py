@@ -9,6 +9,7 @@ protocol 1 (``rrfrei.protocols``) plus noise, on fixed seeds.
 
 from __future__ import annotations
 
+import json
 import warnings
 
 import numpy as np
@@ -234,6 +235,8 @@ def test_the_cli_checkpoints_to_its_output_folder_and_says_why_it_stopped(capsys
                        "--steps", "10", "--walkers", "16", "--quiet", "--max-steps", "5000")
     assert rc == 0, err
     assert (out / "chain.h5").exists()
+    run = json.loads((out / "run.json").read_text())
+    assert isinstance(run["sampling_coordinates"], str)  # which coordinates the ensemble moved in
     assert ("stopped: fixed --steps done after 10 steps x 16 walkers (--max-steps 5000, "
             "--time-budget 300 s") in so
     assert "NOT converged: the 10 fixed steps were too few" in err and "step cap" not in err

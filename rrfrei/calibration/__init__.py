@@ -278,9 +278,9 @@ def calibrate(
     tmax = float(np.nanmax(res.tau)) if np.any(np.isfinite(res.tau)) else float("nan")
     burn = res.burn
     thin = max(1, int(tmax / 2)) if math.isfinite(tmax) else 1
-    from rrfrei.calibration.results import MAX_DRAWS, MAX_DRAWS_DENSE
+    from rrfrei.calibration.results import draws_cap
 
-    cap = MAX_DRAWS_DENSE if problem.subsampled else MAX_DRAWS
+    cap = draws_cap(problem.n_like, problem.subsampled, nw)
     while ((n_steps - burn + thin - 1) // thin) * nw > cap and thin < n_steps:
         thin += 1
     # MAP: the best of the optimum and every sample
@@ -294,6 +294,7 @@ def calibrate(
         "note": res.tau_note, "converged": False, "stopped_by": res.stopped_by,
         "max_steps": int(max_steps), "time_budget": budget.seconds,
         "resumed_steps": int(res.resumed_steps), "points": problem.n_points,
+        "sampling_coordinates": res.coordinates,
         "likelihood_points": problem.n_like,
         "likelihood_stride": int(problem.lik_idx[1] - problem.lik_idx[0]) if problem.n_like > 1 else 1,
         "ess_bulk_chain": res.ess_bulk, "ess_tail_chain": res.ess_tail, "rhat_chain": res.rhat,

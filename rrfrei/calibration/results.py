@@ -5,6 +5,13 @@ For a dense record (likelihood on every ``stride``-th sample, :mod:`.likelihood`
 ``sample`` coordinate is the sample index in the test), in float32, for at most
 :data:`MAX_DRAWS_DENSE` draws; ``observed_data`` and ``constant_data`` keep the whole test.
 
+File size (issue 16: at most 10 MB per posterior): the stored draws are capped so that the
+pointwise log-likelihood holds at most :data:`MAX_LOGLIK_VALUES` values (:func:`draws_cap`), and
+:meth:`Calibration.to_netcdf` writes the ``log_likelihood`` and ``posterior_predictive`` groups
+in float32 (7 significant digits, far below the Monte Carlo error of PSIS-LOO and of the
+predictive bands; the in-memory result keeps float64).  A 2,401-sample test: 624 draws x 2,401
+values x 4 bytes = 6.0 MB, plus ~96 predictive draws x 2 x 2,401 x 4 bytes = 1.8 MB.
+
 The ``posterior`` group holds the sampled quantities (free law parameters, ``sigma`` [kN] and,
 for AR(1) noise, ``rho``) with the walkers as chains.  Its attributes hold everything needed to
 rebuild the result from the netCDF file alone: the law name, the fixed (geometry and default)
@@ -29,18 +36,36 @@ from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, get
 
 __all__ = ["Calibration", "posterior_draws", "loglik_pointwise", "build_idata", "summary_table",
-           "simulate_noise"]
+           "simulate_noise", "draws_cap"]
 
 MAX_DRAWS = 1000
 """Posterior draws kept (walkers x draws) after burn-in and thinning."""
-PREDICTIVE_DRAWS = 200
+PREDICTIVE_DRAWS = 100
 """Draws (spread over the walkers) whose force histories are stored as posterior_predictive."""
+MAX_LOGLIK_VALUES = 1_500_000
+"""Most values of the stored pointwise log-likelihood (draws x likelihood samples): 6 MB in
+float32 (:func:`draws_cap`)."""
 MAX_DRAWS_DENSE = 500
 """Posterior draws kept for a dense record (likelihood on a subsample, see
 :mod:`.likelihood`): with <= 2,000 likelihood samples stored in float32, the pointwise
 log-likelihood then takes <= 4 MB and the whole netCDF file stays under 10 MB."""
 PREDICTIVE_DRAWS_DENSE = 100
 """Posterior-predictive draws stored for a dense record (at the likelihood's samples, float32)."""
+
+
+def draws_cap(n_like: int, dense: bool, walkers: int) -> int:
+    """Most posterior draws stored for a likelihood on ``n_like`` samples.
+
+    ``min(MAX_DRAWS_DENSE if dense else MAX_DRAWS, MAX_LOGLIK_VALUES // n_like)``, and never fewer
+    than two per walker (the draws are walkers x draws per walker); e.g. 624 for 2,401 samples,
+    500 for a dense record's <= 2,000 likelihood samples.
+    """
+    base = MAX_DRAWS_DENSE if dense else MAX_DRAWS
+    return int(max(2 * walkers, min(base, MAX_LOGLIK_VALUES // max(int(n_like), 1))))
+
+
+FLOAT32_GROUPS = ("log_likelihood", "posterior_predictive")
+"""InferenceData groups :meth:`Calibration.to_netcdf` writes in float32."""
 
 
 def _az():
@@ -137,10 +162,18 @@ class Calibration:
 
     # --- output -------------------------------------------------------------------------
     def to_netcdf(self, path: str | Path) -> Path:
-        """Write the InferenceData (with everything needed by :meth:`from_netcdf`)."""
+        """Write the InferenceData (with everything needed by :meth:`from_netcdf`); the groups
+        of :data:`FLOAT32_GROUPS` in float32 (see the module docstring)."""
+        az = _az()
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        self.idata.to_netcdf(str(path))
+        groups = {}
+        for g in self.idata.groups():
+            ds = self.idata[g]
+            if g in FLOAT32_GROUPS:
+                ds = ds.astype(np.float32, keep_attrs=True)
+            groups[g] = ds
+        az.InferenceData(**groups).to_netcdf(str(path))
         return path
 
     @classmethod

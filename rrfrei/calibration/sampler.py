@@ -6,18 +6,19 @@
    the best of a batch of prior draws.  The result is the starting point, not the reported MAP
    alone: the MAP reported is the best of the optimum and every posterior sample.
 2. :func:`run_chain` draws the walkers from the Laplace approximation there (:func:`_ball`) and
-   runs ``emcee`` with a differential-evolution move mixture (ter Braak 2006; Nelson et al.
-   2014), which copes with the strongly correlated parameters of hysteresis laws better than the
-   stretch move.  With ``steps=None`` it runs in chunks of :data:`CHECK` steps until, after
-   burn-in (:func:`burn_in`), every sampled quantity has a bulk and a tail effective sample size
-   >= :data:`ESS_TARGET` (400) and a rank-normalised split R-hat < :data:`RHAT_STOP`, walkers
-   taken as chains (Vehtari et al. 2021), and the kept chain is >= :data:`MIN_TAU` (10)
-   integrated autocorrelation times long with a stable estimate of tau; at most ``max_steps``.
-   The rule used to be "50 tau with tau changing < 5 %" (Foreman-Mackey et al. 2013), a
-   guard for estimating tau itself from one chain; with 32 walkers 50 tau is an ESS of ~1,600,
-   four times what the reported means and 95 % intervals need, and it tripled the run time.
-   The ESS rule targets the quantities reported; the tau conditions keep a chain whose tau is
-   still growing (ESS over-estimated) from stopping early.
+   runs ``emcee``, in the sampling coordinates of :mod:`.reparam` (the law's worst ridge removed;
+   the chain is stored in law parameters), with a differential-evolution move mixture (ter Braak
+   2006; Nelson et al. 2014), which copes with the strongly correlated parameters of hysteresis
+   laws better than the stretch move.  With ``steps=None`` it runs in chunks of :data:`CHECK` steps
+   until, after burn-in (:func:`burn_in`), every sampled quantity has a bulk and a tail effective
+   sample size >= :data:`ESS_TARGET` (400) and a rank-normalised split R-hat < :data:`RHAT_STOP`,
+   walkers taken as chains (Vehtari et al. 2021), and the kept chain is >= :data:`MIN_TAU` (10)
+   integrated autocorrelation times long with a stable estimate of tau; at most ``max_steps``. The
+   rule used to be "50 tau with tau changing < 5 %" (Foreman-Mackey et al. 2013), a guard for
+   estimating tau itself from one chain; with 32 walkers 50 tau is an ESS of ~1,600, four times
+   what the reported means and 95 % intervals need, and it tripled the run time. The ESS rule
+   targets the quantities reported; the tau conditions keep a chain whose tau is still growing
+   (ESS over-estimated) from stopping early.
 3. ``checkpoint=path`` stores the chain in emcee's HDF5 layout every :data:`CHECK` steps (or
    :data:`FLUSH_SECONDS`) plus the optimum in the group ``rrfrei``; rerunning with the same path
    resumes from the last stored step, so an interrupted and a complete run end with the same
@@ -41,6 +42,7 @@ from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.calibration.likelihood import Problem
 from rrfrei.calibration.priors import cube_range
+from rrfrei.calibration.reparam import sampling_coordinates
 
 __all__ = ["find_map", "run_chain", "ensemble_size", "ChainResult", "CHECK", "MAX_STEPS"]
 
@@ -51,24 +53,48 @@ MAX_STEPS = 20_000
 # optimiser
 # ---------------------------------------------------------------------------------------------
 class _Cube:
-    """Map between the unit cube and the free law parameters."""
+    """Map between the unit cube and the free law parameters.
+
+    The cube spans CMA-ES' search box (:func:`~.priors.cube_range`: the prior's support, or
+    +-4 sd of a normal prior).  :meth:`to_x` clips to it; :meth:`x_free` extends the same map
+    (linear or logarithmic) beyond it, and :meth:`support` gives the cube coordinates of the
+    prior's support cut to the physical bounds, the box of the polish (:func:`_polish`): a
+    posterior mode in a normal prior's tail lies outside the +-4 sd box.
+    """
 
     def __init__(self, problem: Problem) -> None:
-        kinds, lo, hi = [], [], []
+        kinds, lo, hi, s_lo, s_hi = [], [], [], [], []
         for j, name in enumerate(problem.free):
-            k, a, b = cube_range(problem.priors[name], problem.lower[j], problem.upper[j])
+            prior = problem.priors[name]
+            k, a, b = cube_range(prior, problem.lower[j], problem.upper[j])
             kinds.append(k == "log")
             lo.append(a)
             hi.append(b)
+            sa, sb = _support(prior)
+            s_lo.append(max(sa, problem.lower[j]))
+            s_hi.append(min(sb, problem.upper[j]))
         self.log = np.array(kinds, dtype=bool)
         self.lo = np.array(lo, dtype=float)
         self.hi = np.array(hi, dtype=float)
+        self._support = (np.array(s_lo, dtype=float), np.array(s_hi, dtype=float))
+
+    def x_free(self, z: np.ndarray) -> np.ndarray:
+        """Parameters at cube coordinates ``z``, not clipped to the cube."""
+        z = np.atleast_2d(z)
+        lin = self.lo + z * (self.hi - self.lo)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            lg = np.exp(np.log(self.lo) + z * (np.log(self.hi) - np.log(self.lo)))
+        return np.where(self.log, lg, lin)
 
     def to_x(self, z: np.ndarray) -> np.ndarray:
-        z = np.clip(np.atleast_2d(z), 0.0, 1.0)
-        lin = self.lo + z * (self.hi - self.lo)
+        return self.x_free(np.clip(np.atleast_2d(z), 0.0, 1.0))
+
+    def z_free(self, x: np.ndarray) -> np.ndarray:
+        """Cube coordinates of parameters ``x``, not clipped (+-inf for 0 or inf on a log scale)."""
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        lin = (x - self.lo) / (self.hi - self.lo)
         with np.errstate(divide="ignore", invalid="ignore"):
-            lg = np.exp(np.log(self.lo) + z * (np.log(self.hi) - np.log(self.lo)))
+            lg = (np.log(np.maximum(x, 0.0)) - np.log(self.lo)) / (np.log(self.hi) - np.log(self.lo))
         return np.where(self.log, lg, lin)
 
     def to_z(self, x: np.ndarray) -> np.ndarray:
@@ -77,6 +103,36 @@ class _Cube:
         with np.errstate(divide="ignore", invalid="ignore"):
             lg = (np.log(np.maximum(x, 1e-300)) - np.log(self.lo)) / (np.log(self.hi) - np.log(self.lo))
         return np.clip(np.where(self.log, lg, lin), 0.0, 1.0)
+
+    def support(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) cube coordinates of the prior's support within the physical bounds."""
+        lo, hi = self.z_free(self._support[0])[0], self.z_free(self._support[1])[0]
+        return np.minimum(lo, 0.0), np.maximum(hi, 1.0)
+
+
+def _support(prior) -> tuple[float, float]:
+    """Support of a prior: [a, b] (uniform, loguniform), the real line (normal), (0, inf)."""
+    if prior.kind in ("uniform", "loguniform"):
+        return prior.a, prior.b
+    if prior.kind == "normal":
+        return -math.inf, math.inf
+    return 0.0, math.inf
+
+
+def _prior_residuals(problem: Problem, x: np.ndarray) -> np.ndarray:
+    """Standardised prior deviations of the free law parameters ``x`` with a normal,
+    lognormal or halfnormal prior: ``-0.5 sum(r^2)`` is their log prior up to a constant (the
+    lognormal's Jacobian term ``-log x`` left out)."""
+    out = []
+    for j, name in enumerate(problem.free):
+        p = problem.priors[name]
+        if p.kind == "normal":
+            out.append((x[j] - p.a) / p.b)
+        elif p.kind == "lognormal":
+            out.append(math.log(max(x[j], 1e-300) / p.a) / p.b)
+        elif p.kind == "halfnormal":
+            out.append(x[j] / p.a)
+    return np.array(out, dtype=float)
 
 
 def find_map(problem: Problem, seed: int = 0, *, max_evals: int | None = None,
@@ -141,40 +197,55 @@ def _polish(problem: Problem, cube: _Cube, theta: np.ndarray, lp: float, *,
             budget: TimeBudget | None = None, progress: bool = False) -> tuple[np.ndarray, float]:
     """Bounded least-squares (trust-region reflective) polish of the CMA-ES optimum.
 
-    The log likelihood is a residual sum of squares, which Gauss-Newton-type steps minimise far
-    faster than an evolution strategy near the optimum (HDR's ten parameters were left far from
-    it by CMA-ES alone).  The polished point is kept only if its log posterior is higher.  A
-    budget that runs out during the polish keeps CMA-ES' point (the polish is an improvement,
-    not a requirement) and the caller finds the budget expired.
+    The log posterior with the noise parameters held at their values at the start (profiled) is,
+    up to a constant, ``-0.5 sum(r^2)`` of the residual vector ``r = [whitened force residuals
+    (obs - F) / sigma (AR(1): innovations, :meth:`.noise.NoiseModel.whiten`), standardised
+    deviations of the parameters with a normal / lognormal / halfnormal prior]``, which
+    Gauss-Newton-type steps minimise far faster than an evolution strategy near the optimum
+    (HDR's ten parameters were left far from it by CMA-ES alone).  The polish searches the
+    prior's support within the physical bounds (:meth:`_Cube.support`), not CMA-ES' box: a
+    strong test puts the mode of a parameter with a normal prior (``alpha2`` ~ N(0, 0.1))
+    beyond the box's +-4 sd, where CMA-ES stops on the box's face and the chain needed
+    thousands of steps to walk to the posterior.  The polished point is kept only if its log
+    posterior (noise profiled again) is higher.  A budget that runs out during the polish keeps
+    CMA-ES' point (the polish is an improvement, not a requirement) and the caller finds the
+    budget expired.
     """
     from scipy.optimize import least_squares
 
     k = len(problem.free)
     obs = problem.observed
-    scale = float(np.std(obs)) or 1.0
     pad = np.ones((1, problem.ndim - k))
+    noise0 = np.asarray(theta[k:], dtype=float)[None, :]
+    if not np.all(np.isfinite(noise0)) or noise0[0, 0] <= 0:
+        return theta, lp
+    n_prior = _prior_residuals(problem, theta[:k]).size
+    fail = math.sqrt(max(-2.0 * lp, 1.0) / obs.size) * 10.0 + 10.0
 
     bar = progress_bar(100 * k, "polish (least squares)", enabled=progress, unit="eval")
 
     def resid(z: np.ndarray) -> np.ndarray:
         if budget is not None:
             budget.check()
-        P = problem.full_params(np.column_stack([cube.to_x(z), pad]))
+        x = cube.x_free(z)[0]
+        P = problem.full_params(np.concatenate([x, pad[0]])[None, :])
         F, status = problem.forces(P)
         bar.update(1)
         if status[0] != 0 or not np.all(np.isfinite(F[0])):
-            return np.full(obs.size, 1e3)
-        return (problem.at_points(F)[0] - obs) / scale
+            return np.full(obs.size + n_prior, fail)
+        r = problem.noise.whiten((obs - problem.at_points(F)[0])[:, None], noise0)[:, 0]
+        return np.concatenate([r, _prior_residuals(problem, x)])
 
-    z0 = cube.to_z(theta[:k])[0]
+    z0 = cube.z_free(theta[:k])[0]
+    lo, hi = cube.support()
     try:
-        res = least_squares(resid, z0, bounds=(0.0, 1.0), method="trf", x_scale="jac",
-                            max_nfev=100 * k, diff_step=1e-7)
+        res = least_squares(resid, np.clip(z0, lo, hi), bounds=(lo, hi), method="trf",
+                            x_scale="jac", max_nfev=100 * k, diff_step=1e-7)
     except (ValueError, BudgetExceeded):  # e.g. a start on the bound trf cannot handle: keep CMA-ES'
         return theta, lp
     finally:
         bar.close()
-    th, lpp = problem.profile_log_prob(cube.to_x(res.x))
+    th, lpp = problem.profile_log_prob(cube.x_free(res.x))
     if float(lpp[0]) > lp:
         return np.asarray(th[0], dtype=float), float(lpp[0])
     return theta, lp
@@ -199,6 +270,7 @@ class ChainResult:
     ess_tail: float = float("nan")
     rhat: float = float("nan")
     resumed_steps: int = 0  # steps found in the checkpoint
+    coordinates: str = "law parameters"  # the sampling coordinates (rrfrei.calibration.reparam)
 
 
 LAPLACE_STEP = 1e-6
@@ -219,12 +291,12 @@ def laplace_cov(problem: Problem, theta0: np.ndarray) -> np.ndarray | None:
     """
     k = len(problem.free)
     cube = _Cube(problem)
-    z0 = cube.to_z(theta0[:k])[0]
-    h = np.where(z0 + LAPLACE_STEP <= 1.0, LAPLACE_STEP, -LAPLACE_STEP)
+    z0 = cube.z_free(theta0[:k])[0]
+    h = np.where(z0 + LAPLACE_STEP <= cube.support()[1], LAPLACE_STEP, -LAPLACE_STEP)
     Z = np.repeat(z0[None, :], k + 1, axis=0)
     Z[1:] += np.diag(h)
     pad = np.ones((k + 1, problem.ndim - k))
-    F, status = problem.forces(problem.full_params(np.column_stack([cube.to_x(Z), pad])))
+    F, status = problem.forces(problem.full_params(np.column_stack([cube.x_free(Z), pad])))
     if np.any(status != 0) or not np.all(np.isfinite(F)):
         return None
     F = problem.at_points(F)
@@ -239,7 +311,21 @@ def laplace_cov(problem: Problem, theta0: np.ndarray) -> np.ndarray | None:
     return cov if np.all(np.isfinite(cov)) else None
 
 
-def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generator) -> np.ndarray:
+def laplace_sd(problem: Problem, theta0: np.ndarray, cov: np.ndarray | None) -> np.ndarray | None:
+    """Laplace standard deviations of the free law parameters at ``theta0`` in their own units
+    (``cov`` from :func:`laplace_cov`, mapped by the cube's slope ``dx/dz``); None without ``cov``."""
+    k = len(problem.free)
+    if cov is None or k == 0:
+        return None
+    cube = _Cube(problem)
+    z0 = cube.z_free(theta0[:k])[0]
+    h = 1e-7
+    slope = (cube.x_free(z0 + h)[0] - cube.x_free(z0 - h)[0]) / (2 * h)
+    return np.sqrt(np.diag(cov)) * np.abs(slope)
+
+
+def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generator,
+          cov: np.ndarray | None | str = "compute") -> np.ndarray:
     """Walkers drawn from the Laplace approximation at ``theta0``, each with finite log posterior.
 
     Law parameters: ``N(z0, Sigma)`` in unit-cube coordinates (:func:`laplace_cov`); noise: sigma
@@ -253,17 +339,19 @@ def _ball(problem: Problem, theta0: np.ndarray, nw: int, rng: np.random.Generato
     cube = _Cube(problem)
     k = len(problem.free)
     n = problem.n_like
-    cov = laplace_cov(problem, theta0) if k else None
+    if isinstance(cov, str):
+        cov = laplace_cov(problem, theta0) if k else None
     chol = np.linalg.cholesky(cov) if cov is not None else 1e-3 * np.eye(k)
-    z = cube.to_z(theta0[:k])[0] if k else np.zeros(0)
+    z = cube.z_free(theta0[:k])[0] if k else np.zeros(0)
+    z_lo, z_hi = cube.support()
     sd_noise = np.array([1.0 / math.sqrt(2.0 * n)] + ([1.0] if problem.noise.ar1 else []))
     out = np.empty((nw, problem.ndim))
     filled = 0
     scale = 1.0
     for _ in range(50):
         Z = z + scale * rng.standard_normal((nw, k)) @ chol.T
-        inside = np.all((Z >= 0.0) & (Z <= 1.0), axis=1)
-        X = cube.to_x(Z) if k else np.zeros((nw, 0))
+        inside = np.all((Z >= z_lo) & (Z <= z_hi), axis=1)
+        X = cube.x_free(Z) if k else np.zeros((nw, 0))
         noise = theta0[k:] * (1.0 + scale * sd_noise * rng.standard_normal((nw, problem.ndim - k)))
         if problem.noise.ar1:
             r0 = theta0[k + 1]
@@ -573,12 +661,26 @@ def run_chain(
         raise ValueError(f"max_steps must be an integer >= 2, got {max_steps!r}")
     store = _Store(checkpoint, nw, ndim)
     resumed = store.n
-    sampler = emcee.EnsembleSampler(nw, ndim, problem.log_prob, vectorize=True, moves=moves())
+    k = len(problem.free)
+    cov = laplace_cov(problem, theta0) if k else None
+    sd = laplace_sd(problem, theta0, cov)
+    ia = problem.free.index("alpha2") if "alpha2" in problem.free else None
+    coords = sampling_coordinates(problem, theta0, None if sd is None or ia is None else float(sd[ia]))
+
+    def log_prob(phi: np.ndarray) -> np.ndarray:
+        """The law posterior in the sampling coordinates: times |d theta / d phi|."""
+        lp = problem.log_prob(coords.to_law(phi))
+        ok = np.isfinite(lp)
+        lp[ok] += coords.log_jacobian(phi[ok])
+        return lp
+
+    sampler = emcee.EnsembleSampler(nw, ndim, log_prob, vectorize=True, moves=moves())
     if resumed:
-        state = emcee.State(store.chain[-1].copy(), log_prob=store.logp[-1].copy())
+        phi = coords.to_sampling(store.chain[-1])
+        state = emcee.State(phi, log_prob=store.logp[-1] + coords.log_jacobian(phi))
         sampler.random_state = np.random.RandomState([int(seed), resumed]).get_state()
     else:
-        state = emcee.State(_ball(problem, theta0, nw, np.random.default_rng(seed)))
+        state = emcee.State(coords.to_sampling(_ball(problem, theta0, nw, np.random.default_rng(seed), cov)))
         sampler.random_state = np.random.RandomState(seed).get_state()
     evals0 = problem.n_evals
     note = ""
@@ -608,8 +710,8 @@ def run_chain(
                 state = new
                 acc += np.any(new.coords != prev, axis=1)  # a rejected proposal keeps the walker
                 prev = new.coords.copy()
-                new_c.append(prev)
-                new_l.append(new.log_prob.copy())
+                new_c.append(coords.to_law(prev))  # stored in law parameters
+                new_l.append(new.log_prob - coords.log_jacobian(prev))
                 bar.update(1)
                 if budget is not None and budget.expired():
                     break
@@ -661,7 +763,7 @@ def run_chain(
         converged_tau=long_enough and stable and enough, tau_note=note,
         evals=problem.n_evals - evals0, seconds=time.perf_counter() - t0, stopped_by=stopped_by,
         burn=chk.burn, ess_bulk=chk.ess_bulk, ess_tail=chk.ess_tail, rhat=chk.rhat,
-        resumed_steps=resumed,
+        resumed_steps=resumed, coordinates=coords.name,
     )
 
 

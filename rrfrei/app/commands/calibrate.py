@@ -261,6 +261,7 @@ def run(args: argparse.Namespace) -> int:
         "seconds": float(d["seconds"]), "tau_max": max(d["tau"].values()), "rhat_max": float(d["rhat_max"]),
         "ess_min": float(d["ess_min"]), "likelihood_points": int(d["likelihood_points"]),
         "points": int(d["points"]), "stored_draws": int(d["stored_draws"]),
+        "sampling_coordinates": d.get("sampling_coordinates", "law parameters"),
         "checkpoint": None if checkpoint is None else str(checkpoint),
     }
     (out / "run.json").write_text(json.dumps(run_info, indent=2))
