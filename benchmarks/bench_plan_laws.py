@@ -101,7 +101,7 @@ def main() -> None:
     repeat = 2 if args.quick else 7
     u = history(1000 if args.quick else N)
     laws = [n for n in plan.names() if plan.get(n).opensees_element and n in opensees_plan.PLAN_LAWS]
-    rows, skipped = [], []
+    rows, skipped, head = [], [], {"steps": int(u.shape[0])}
     for law in laws:
         if law not in PARAMS:
             skipped.append(law)
@@ -114,6 +114,7 @@ def main() -> None:
         rows.append(f"| {law} | `{plan.get(law).opensees_element}` | {ps} | {tm.fmt(c.peer.median)} "
                     f"| {tm.fmt(c.ours.median)} | **{c.ratio:.0f}x** | {c.discrepancy:.1e} |")
         print(rows[-1], flush=True)
+        head[law] = {"ours_s": c.ours.median, "peer_s": c.peer.median, "ratio": c.ratio}
     cold = tm.cold_start(COLD.format(params=PARAMS["bouc_wen"]))
     lines = [
         "## bench_plan_laws (coupled bidirectional laws against openseespy's 3-D elements)",
@@ -142,7 +143,7 @@ def main() -> None:
         f"{cold.warm['import']:.2f} s + {cold.warm['first']:.2f} s."
         + "".join(f" Note: {n}." for n in cold.notes),
     ]
-    report("bench_plan_laws", "\n".join(lines), quick=args.quick)
+    report("bench_plan_laws", "\n".join(lines), quick=args.quick, headline=head)
 
 
 if __name__ == "__main__":

@@ -52,11 +52,23 @@ def table(h: dict) -> str:
         row(f"{label} law, {steps:,} steps", ms(f.get("ours_s")),
             f"openseespy `analyze({steps})` {ms(f.get('peer_s'))}", x(f.get("ratio")), "sequential",
             ">= 100x" if label == "bouc_wen (eta=1.37)" else "")
+    pl = h.get("bench_plan_laws", {})
+    for label in ("plasticity", "bouc_wen", "elastomeric_x", "hdr"):
+        f = pl.get(label, {})
+        row(f"{label} in plan (coupled, (n, 2) path), {pl.get('steps', 5000):,} steps",
+            ms(f.get("ours_s")), f"openseespy 3-D element `analyze` {ms(f.get('peer_s'))}",
+            x(f.get("ratio")), "sequential", ">= 50x")
     n = th.get("threads", "all")
     row(f"5-story building on bouc_wen, {th.get('steps', 8000):,} Newmark steps", ms(th.get("ours_s")),
         f"openseespy `analyze({th.get('steps', 8000)})` {ms(th.get('peer_s'))}", f"**{x(th.get('ratio'))}**",
         f"batch of 1,000: {th.get('batch_rate_multi', 0):.0f} analyses/s on {n} threads "
         f"({th.get('batch_rate_1', 0):.0f} on 1)" if th else MISSING, ">= 100x per core")
+    pb = h.get("bench_plan_building", {})
+    for label in ("plasticity", "bouc_wen", "elastomeric_x", "hdr"):
+        row(f"5-story plan building (x and y) on {label}, Ferndale pair, "
+            f"{pb.get('steps', 4000):,} Newmark steps",
+            ms(pb.get(f"{label}_ours_s")), f"openseespy 3-D model {ms(pb.get(f'{label}_peer_s'))}",
+            x(pb.get(f"{label}_ratio")), "", ">= 50x")
     row("one likelihood evaluation (bouc_wen, 2,401 points; batched over 32 walkers)", ms(cal.get("ours_s")),
         f"openseespy forward model {ms(cal.get('peer_s'))}", f"**{x(cal.get('ratio'))}**",
         f"{cal.get('multi_rate', 0):,.0f} evaluations/s on {cal.get('threads', 'all')} threads"
