@@ -16,7 +16,7 @@ from rrfrei.laws.registry import ParamSpec, Prior
 
 
 @njit(cache=True, inline="always")
-def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
     """Scale by 1 - m (1 - |u| / u_max) below u_max (contract in :mod:`rrfrei.laws.effects`)."""
     um = sc[so]
     a = abs(u)
