@@ -29,6 +29,12 @@ only through the committed peaks, so a cycle at a constant amplitude closes; wit
 (the loop dissipates less).  Before the first step (``F_max = 0`` or ``u_max = 0``) ``g = 1``.
 Neutral: ``pinch = 0`` (any width and angle).
 
+Slack is local: the diagnosis fits the half-width in ``w <= 0.5`` (its box, the physical bound is
+wider), so a band never spans more than half of the previous peaks either side of the line.  A
+softening below the previous peak that reaches out to ``u_max`` is Mullins' (:mod:`.mullins`);
+at ``phi = pi/2`` both are functions of ``|u| / u_max`` alone and the band's width is what tells
+them apart (docs/gap/validation.md, "Why the misses").
+
 State (2): ``[F_max [kN], u_max [m]]``.
 """
 
@@ -80,11 +86,10 @@ def _screen(ctx) -> float:
 
 HINTS = DiagnosisHints(
     _screen,
-    lambda s: [{"pinch": 0.6, "pinch_width": 0.4, "pinch_angle": 0.0},
-               {"pinch": 0.6, "pinch_width": 0.5, "pinch_angle": 0.5},
+    lambda s: [{"pinch": 0.6, "pinch_width": 0.4, "pinch_angle": 0.5},
                {"pinch": 0.5, "pinch_width": 0.4, "pinch_angle": 1.4}],
     lambda s: {"pinch": 0.3, "pinch_width": 0.3, "pinch_angle": 0.5},
-    lambda s: {"pinch_width": (0.05, 2.0)}, order=8)
+    lambda s: {"pinch_width": (0.05, 0.5)}, order=8)
 
 
 EFFECT = register_effect(EffectSpec(
