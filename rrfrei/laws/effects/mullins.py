@@ -57,7 +57,7 @@ HINTS = DiagnosisHints(_screen,
                        lambda s: [{"mullins": 0.1, "mullins_shape": 1.0},
                                   {"mullins": 0.3, "mullins_shape": 2.0}],
                        lambda s: {"mullins": 0.1, "mullins_shape": 1.0},
-                       lambda s: {"mullins_shape": (0.25, 8.0)}, order=2)
+                       lambda s: {"mullins_shape": (0.25, 2.0)}, order=2)
 
 
 EFFECT = register_effect(EffectSpec(
