@@ -13,7 +13,10 @@ function (1999, Proc. R. Soc. A 455; Dorfmann & Ogden 2004); ``c > 2`` recovers 
 curve only close to ``u_max``, ``c < 1`` softens mostly near ``u = 0``.  ``g`` lies in
 ``[1 - m, 1]`` and reaches 1 at ``u_max`` for every ``c``, so the force stays continuous.  At
 ``c = 1`` the kernel evaluates the linear form itself (bit for bit the former one-parameter
-kernel).  Neutral: ``m = 0``.
+kernel).  Neutral: ``m = 0``.  The diagnosis fits ``0.25 <= c <= 2`` (its box): beyond the
+strain-energy exponent the shape has no physical reading here, and the refitted kernel then
+reproduced a validation generator form (``erf`` of the energy deficit) to better than its noise
+(docs/gap/validation.md).
 
 State (1): ``[u_max]`` [m].
 """
