@@ -19,7 +19,7 @@ NAME = "toy_offset"
 
 
 @njit(cache=True, inline="always")
-def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
     """Add c u_max sgn(F_base) (contract in :mod:`rrfrei.laws.effects`); no tangent (u_max is
     history)."""
     um = max(sc[so], abs(u))

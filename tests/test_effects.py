@@ -46,7 +46,7 @@ def test_all_effects_together_at_neutral_parameters_are_the_base_law_exactly():
 @given(name=st.sampled_from(["degradation", "mullins", "rate", "asymmetry", "slip"]),
        size=st.floats(0.05, 0.6))
 def test_dissipative_effects_dissipate_nonnegative_energy_in_every_cycle(name, size):
-    values = {"degradation": {"deg_rate": 30 * size}, "mullins": {"mullins": size},
+    values = {"degradation": {"deg_rate": 30 * size}, "mullins": {"mullins": size, "mullins_shape": 1.0},
               "rate": {"rate_c": 20 * size}, "asymmetry": {"asym": size},
               "slip": {"slip_force": 0.7 + size}}[name]
     f = simulate_force(f"plasticity+{name}", {**PL, **values}, U1, time=T1)
@@ -56,7 +56,8 @@ def test_dissipative_effects_dissipate_nonnegative_energy_in_every_cycle(name, s
 
 
 @pytest.mark.parametrize("name,values", [
-    ("degradation", {"deg_rate": 5.0}), ("mullins", {"mullins": 0.3}),
+    ("degradation", {"deg_rate": 5.0}), ("mullins", {"mullins": 0.3, "mullins_shape": 1.0}),
+    ("mullins", {"mullins": 0.3, "mullins_shape": 2.5}), ("mullins", {"mullins": 0.3, "mullins_shape": 0.5}),
     ("rollover", {"roll_k": -20.0, "roll_onset": 0.01}), ("rate", {"rate_c": 5.0, "rate_exp": 0.7}),
     ("asymmetry", {"asym": 0.2}),
 ])
@@ -103,14 +104,31 @@ def test_degradation_fades_the_force_by_the_closed_form_of_cumulative_work():
     assert f[-300:].max() < 0.9 * fb[-300:].max()  # strength visibly faded by the end
 
 
-def test_mullins_softens_reloading_below_the_previous_maximum_only():
+@pytest.mark.parametrize("shape", [1.0, 2.0, 0.5, 5.0])
+def test_mullins_softens_reloading_below_the_previous_maximum_only(shape):
+    """g = 1 - m (1 - r^c), r = |u| / u_max below the previous maximum, 1 on virgin loading."""
     fb = simulate_force("plasticity", PL, U1)
-    f = simulate_force("plasticity+mullins", {**PL, "mullins": 0.3}, U1)
+    f = simulate_force("plasticity+mullins", {**PL, "mullins": 0.3, "mullins_shape": shape}, U1)
     umax_before = np.concatenate([[0.0], np.maximum.accumulate(np.abs(U1))[:-1]])
     virgin = np.abs(U1) >= umax_before
     np.testing.assert_array_equal(f[virgin], fb[virgin])
-    g = 1 - 0.3 * (1 - np.abs(U1[~virgin]) / umax_before[~virgin])
+    g = 1 - 0.3 * (1 - (np.abs(U1[~virgin]) / umax_before[~virgin]) ** shape)
     np.testing.assert_allclose(f[~virgin], fb[~virgin] * g, rtol=1e-12)
+
+
+def test_mullins_shape_decides_where_below_the_peak_the_bearing_is_softer():
+    """Every shape softens by m at u = 0 and recovers at u_max; a larger exponent c keeps the
+    reloading soft closer to the previous peak (energy-like deficit), a smaller one only near 0."""
+    u = np.concatenate([np.linspace(0, 0.03, 301), np.linspace(0.03, 0.0, 301)[1:]])
+    fb = simulate_force("plasticity", PL, u)
+    back = np.arange(u.size) > 300
+    ratio = {c: simulate_force("plasticity+mullins", {**PL, "mullins": 0.4, "mullins_shape": c}, u)[back]
+             / fb[back] for c in (0.5, 1.0, 3.0)}
+    mid = np.abs(u[back] - 0.015) < 1e-9
+    assert ratio[0.5][mid] > ratio[1.0][mid] > ratio[3.0][mid]
+    for c in ratio:
+        assert ratio[c][-1] == pytest.approx(0.6)  # at u = 0: 1 - m
+        assert ratio[c][0] == pytest.approx(1.0, abs=1e-2)
 
 
 def test_rate_force_grows_with_loading_speed():

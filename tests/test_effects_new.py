@@ -7,7 +7,7 @@ with the other effects and with ``slip``, and keeps its defining property on ran
 import numpy as np
 import pytest
 from _law_strategies import histories
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from rrfrei import simulate_force
@@ -22,7 +22,7 @@ BW = {"k_init": 120.0, "qd": 0.6, "alpha1": 0.2, "alpha2": 0.0, "mu": 2.0, "eta"
 T1, U1 = protocol(1)  # growing cycles to 30 mm
 
 STIFF = {"stiff_k": 50.0, "stiff_onset": 0.01}
-PINCH = {"pinch": 0.5, "pinch_width": 0.003}
+PINCH = {"pinch": 0.5, "pinch_width": 0.4, "pinch_angle": 0.0}
 SCRAG = {"scrag": 0.3, "scrag_disp": 0.01}
 NEW = {"stiffening": STIFF, "pinching": PINCH, "scragging": SCRAG}
 
@@ -40,7 +40,7 @@ def test_the_three_effects_are_catalogue_candidates_after_the_six_earlier_ones()
     for name, order in (("stiffening", 7), ("pinching", 8), ("scragging", 9)):
         assert EFFECTS[name].hints.order == order
     assert get("plasticity+stiffening").param_names[-2:] == ("stiff_k", "stiff_onset")
-    assert get("plasticity+pinching").param_names[-2:] == ("pinch", "pinch_width")
+    assert get("plasticity+pinching").param_names[-3:] == ("pinch", "pinch_width", "pinch_angle")
     assert get("plasticity+scragging").param_names[-2:] == ("scrag", "scrag_disp")
     assert get("plasticity+stiffening").param("stiff_k").lower == 0.0  # stiffening only
 
@@ -48,7 +48,7 @@ def test_the_three_effects_are_catalogue_candidates_after_the_six_earlier_ones()
 @pytest.mark.parametrize("base", ["plasticity", "bouc_wen"])
 @pytest.mark.parametrize("name,zero", [
     ("stiffening", {"stiff_k": 0.0, "stiff_onset": 1e-4}),
-    ("pinching", {"pinch": 0.0, "pinch_width": 1e-6}),
+    ("pinching", {"pinch": 0.0, "pinch_width": 1e-3, "pinch_angle": 0.3}),
     ("scragging", {"scrag": 0.0, "scrag_disp": 1e-6}),
 ])
 def test_a_zero_amplitude_is_the_base_law_bit_for_bit_whatever_its_length_scale(base, name, zero):
@@ -68,8 +68,9 @@ def test_tangent_is_the_derivative_of_the_force_within_a_step(name):
     for u in path:
         spec.step(p, sc, u, 0.0, 1.0, stt)
         sc[:] = stt
-    # below the peak near zero (pinching band), beyond the onset, and on a new peak
-    for u in (0.0015, 0.018, 0.0262):
+    # below the peak near zero, reloading through zero force (pinching band), beyond the onset,
+    # and on a new peak
+    for u in (0.0015, 0.005, 0.007, 0.018, 0.0262):
         f, k, _ = spec.step(p, sc, u, 0.0, 1.0, stt.copy())
         h = 1e-8
         fp, _, _ = spec.step(p, sc, u + h, 0.0, 1.0, stt.copy())
@@ -116,30 +117,103 @@ def test_rollover_only_softens_stiffening_is_its_own_effect():
 
 
 # --- pinching ----------------------------------------------------------------------------------
-def test_pinching_scales_the_force_near_zero_by_the_closed_form_below_the_previous_peak():
+def _pinch_g(u, fb, pinch, pinch_width, pinch_angle):
+    """Closed form of the pinching factor (module docstring of ``rrfrei.laws.effects.pinching``):
+    g = 1 - p (1 - x^2)^2 for |x| < 1, x = (cos(phi) f_b / F_max - sin(phi) u / u_max) / w, with
+    the peaks of |f_b| and |u| committed before each sample."""
+    fm, um = _before(fb), _before(u)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = (np.cos(pinch_angle) * fb / fm - np.sin(pinch_angle) * u / um) / pinch_width
+    on = (fm > 0) & (um > 0) & (np.abs(x) < 1)
+    return np.where(on, 1 - pinch * (1 - np.where(on, x, 0) ** 2) ** 2, 1.0)
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.45, np.pi / 2, -0.7])
+def test_pinching_scales_the_force_by_the_closed_form_bump_on_the_pinching_line(angle):
     fb = simulate_force("plasticity", PL, U1)
-    f = simulate_force("plasticity+pinching", {**PL, **PINCH}, U1)
-    um = _before(U1)
-    below = np.abs(U1) < um
-    g = 1 - 0.5 * (np.exp(-(U1 / 0.003) ** 2) - np.exp(-(um / 0.003) ** 2))
-    np.testing.assert_allclose(f[below], fb[below] * g[below], rtol=1e-12, atol=1e-15)
-    assert np.array_equal(f[~below], fb[~below])  # virgin loading is not pinched
+    vals = {**PINCH, "pinch_angle": angle}
+    f = simulate_force("plasticity+pinching", {**PL, **vals}, U1)
+    g = _pinch_g(U1, fb, **vals)
+    assert (g < 0.99).sum() > 20  # the band is crossed on every cycle
+    np.testing.assert_allclose(f, fb * g, rtol=1e-12, atol=1e-15)
 
 
-def test_pinching_shrinks_the_loop_lowers_the_force_near_zero_and_the_loop_still_closes():
+def _zero_force_crossings(f, u):
+    """Indices i where the force changes sign between i and i + 1 after the first cycle."""
+    i = np.nonzero(np.sign(f[:-1]) * np.sign(f[1:]) < 0)[0]
+    return i[i > 400]
+
+
+def test_pinching_acts_near_zero_force_not_near_zero_displacement():
+    """In a loop with hysteresis the force crosses zero away from u = 0 (here near |u| = 9 mm):
+    the force-space kernel (angle 0) lowers the stiffness there to (1 - p) k_b and leaves the
+    force at u = 0 (about the characteristic strength) alone."""
     u = _sine(0.02, cycles=4)
-    fb = simulate_force("plasticity", PL, u)
-    f = simulate_force("plasticity+pinching", {**PL, **PINCH}, u)
-    mb, m = cycle_metrics(u, fb), cycle_metrics(u, f)
-    assert (m.energy.iloc[1:] < 0.95 * mb.energy.iloc[1:]).all()  # about 10 % smaller here
-    near = (np.abs(u) < 0.001) & (np.arange(u.size) > 400)  # crossings of zero after the first cycle
-    assert near.any()
-    assert (np.abs(f[near]) < 0.7 * np.abs(fb[near])).all()
-    assert (np.sign(f[near]) == np.sign(fb[near])).all()
-    # steady cycles at one amplitude repeat: the loop closes
+    fb, kb = simulate_force("plasticity", PL, u, return_tangent=True)
+    f, k = simulate_force("plasticity+pinching", {**PL, **PINCH}, u, return_tangent=True)
+    cross = _zero_force_crossings(fb, u)
+    assert cross.size >= 5
+    assert (np.abs(u[cross]) > 0.005).all()
+    # within one sample of f_b = 0 (a few % of F_max): the tangent is (1 - p) k_b to first order
+    np.testing.assert_allclose(k[cross], (1 - 0.5) * kb[cross], rtol=0.05)
+    at_zero_u = (np.abs(u) < 5e-4) & (np.arange(u.size) > 400)
+    assert at_zero_u.any()
+    assert np.array_equal(f[at_zero_u], fb[at_zero_u])  # |f_b| ~ q_d: outside the band
+
+
+def test_pinching_lowers_the_stiffness_near_zero_force_and_the_loop_still_closes():
+    u = _sine(0.02, cycles=4)
     n = 400
-    np.testing.assert_allclose(f[2 * n:3 * n + 1], f[3 * n:4 * n + 1], atol=1e-12)
-    assert np.max(np.abs(np.diff(f))) < 2 * np.max(np.abs(np.diff(fb)))  # no jump in the force
+    for base, vals in (("plasticity", PL), ("bouc_wen", BW)):
+        fb = simulate_force(base, vals, u)
+        f = simulate_force(f"{base}+pinching", {**vals, **PINCH}, u)
+        # the pinched loop needs more travel to go from -0.2 F_max to +0.2 F_max on a branch
+        up = (np.gradient(u) > 0) & (np.arange(u.size) > 2 * n) & (np.arange(u.size) < 3 * n)
+        fmax = np.abs(fb).max()
+
+        def travel(force, up=up, fmax=fmax):
+            return np.ptp(u[up & (np.abs(force) < 0.2 * fmax)])
+
+        assert travel(f) > 1.2 * travel(fb)
+        np.testing.assert_allclose(f[2 * n:3 * n + 1], f[3 * n:4 * n + 1], atol=1e-12)  # closes
+        assert np.max(np.abs(np.diff(f))) < 2 * np.max(np.abs(np.diff(fb)))  # no jump in the force
+
+
+@pytest.mark.parametrize("base", ["plasticity", "bouc_wen"])
+def test_slack_inward_of_each_branch_dissipates_less_a_symmetric_remap_of_a_parallelogram_does_not(base):
+    """Where the band sits decides the loop's area.  The descending branch is the lower one: a
+    band where it carries a negative force (about u = 0, angle pi/2, or on a line of negative
+    slope) lowers |F| towards the inside of the loop, which is thinner (as BWBN's pinching).  At
+    angle 0 the band is symmetric about F = 0; on the bilinear loop, whose two elastic branches
+    are parallel, the loop's width is the same at every force in the band, so a remap of the force
+    alone moves area within the loop and keeps it: the energy per cycle is unchanged."""
+    vals = PL if base == "plasticity" else BW
+    u = _sine(0.02, cycles=4)
+    e_b = cycle_metrics(u, simulate_force(base, vals, u)).energy.to_numpy()[1:]
+
+    def energy(angle):
+        f = simulate_force(f"{base}+pinching", {**vals, **PINCH, "pinch_angle": angle}, u)
+        return cycle_metrics(u, f).energy.to_numpy()[1:]
+
+    for angle in (np.pi / 2, 1.0, -0.5):
+        assert (energy(angle) < 0.97 * e_b).all()
+    if base == "plasticity":
+        np.testing.assert_allclose(energy(0.0), e_b, rtol=1e-3)
+
+
+def test_pinching_spans_displacement_space_slack_at_a_right_angle():
+    """At angle pi/2 the band is about u = 0, its half-width w u_max: the force at u = 0 below
+    the previous peak is (1 - p) f_b, and the zero-force crossing is untouched when it lies outside
+    the band."""
+    u = _sine(0.02, cycles=3)
+    fb = simulate_force("plasticity", PL, u)
+    f = simulate_force("plasticity+pinching", {**PL, "pinch": 0.5, "pinch_width": 0.2,
+                                               "pinch_angle": np.pi / 2}, u)
+    zero = np.nonzero((np.abs(u) < 1e-12) & (np.arange(u.size) > 0))[0]
+    np.testing.assert_allclose(f[zero], 0.5 * fb[zero], rtol=1e-9)
+    cross = _zero_force_crossings(fb, u)
+    assert (np.abs(u[cross]) > 0.2 * 0.02).all()
+    np.testing.assert_array_equal(f[cross], fb[cross])
 
 
 # --- scragging ---------------------------------------------------------------------------------
@@ -151,7 +225,7 @@ def test_scragging_softens_by_the_closed_form_of_the_peak_including_virgin_loadi
     virgin = np.abs(U1) >= _before(U1)
     late = virgin & (np.abs(U1) > 0.02)
     assert (np.abs(f[late]) < 0.85 * np.abs(fb[late])).all()  # unlike mullins, virgin is softer
-    fm = simulate_force("plasticity+mullins", {**PL, "mullins": 0.3}, U1)
+    fm = simulate_force("plasticity+mullins", {**PL, "mullins": 0.3, "mullins_shape": 1.0}, U1)
     assert np.array_equal(fm[virgin], fb[virgin])
 
 
@@ -188,9 +262,9 @@ def test_scaling_effects_compose_as_a_product_in_either_order_with_degradation()
     b = simulate_force("plasticity+degradation+pinching+scragging", {**PL, **SCRAG, **PINCH,
                                                                       "deg_rate": 5.0}, U1)
     np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)
-    um, ub = np.maximum.accumulate(np.abs(U1)), _before(U1)
+    um = np.maximum.accumulate(np.abs(U1))
     g_s = 1 - 0.3 * (1 - np.exp(-um / 0.01))
-    g_p = np.where(np.abs(U1) < ub, 1 - 0.5 * (np.exp(-(U1 / 0.003) ** 2) - np.exp(-(ub / 0.003) ** 2)), 1)
+    g_p = _pinch_g(U1, fb, **PINCH)
     w = dissipated_energy(U1, fb)
     g_d = 1 / (1 + 5.0 * np.concatenate([[0.0], np.maximum.accumulate(np.maximum(w, 0.0))[:-1]]))
     np.testing.assert_allclose(a, fb * g_s * g_p * g_d, rtol=1e-9, atol=1e-12)
@@ -215,14 +289,14 @@ def test_stiffening_composes_with_scaling_effects_and_with_slip():
 # --- properties on random histories ------------------------------------------------------------
 @settings(max_examples=25, deadline=None)
 @given(u=histories(min_size=5, max_size=60), s=st.floats(0.0, 0.9), uc=st.floats(1e-3, 0.05),
-       p=st.floats(0.0, 0.9), w=st.floats(1e-3, 0.05), k=st.floats(0.0, 500.0),
-       onset=st.floats(1e-3, 0.05))
-def test_properties_on_random_histories(u, s, uc, p, w, k, onset):
+       p=st.floats(0.0, 0.9), w=st.floats(0.01, 3.0), phi=st.floats(-np.pi / 2, np.pi / 2),
+       k=st.floats(0.0, 500.0), onset=st.floats(1e-3, 0.05))
+def test_properties_on_random_histories(u, s, uc, p, w, phi, k, onset):
     """Scragging and pinching only ever shrink the force, never flip it; scragging's factor never
     recovers; stiffening adds a path-independent force of the sign of u."""
     fb = simulate_force("plasticity", PL, u)
     fs = simulate_force("plasticity+scragging", {**PL, "scrag": s, "scrag_disp": uc}, u)
-    fp = simulate_force("plasticity+pinching", {**PL, "pinch": p, "pinch_width": w}, u)
+    fp = simulate_force("plasticity+pinching", {**PL, "pinch": p, "pinch_width": w, "pinch_angle": phi}, u)
     fk = simulate_force("plasticity+stiffening", {**PL, "stiff_k": k, "stiff_onset": onset}, u)
     for f, floor in ((fs, 1 - s), (fp, 1 - p)):
         assert (np.abs(f) <= np.abs(fb) + 1e-12).all()
@@ -235,3 +309,34 @@ def test_properties_on_random_histories(u, s, uc, p, w, k, onset):
     assert (add * np.sign(u) >= -1e-12).all()
     np.testing.assert_allclose(add, k * np.sign(u) * np.maximum(np.abs(u) - onset, 0.0) ** 2
                                / (2 * onset), rtol=1e-9, atol=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(u=histories(min_size=5, max_size=60), p=st.floats(0.0, 0.9), w=st.floats(0.05, 3.0),
+       phi=st.floats(-np.pi / 2, np.pi / 2), base=st.sampled_from(["plasticity", "bouc_wen"]))
+def test_pinching_is_its_closed_form_with_a_consistent_tangent_on_random_histories(u, p, w, phi, base):
+    """Any base, width and angle: F = g f_b with the closed-form bump; and wherever the base law's
+    tangent is the derivative of its force, the kernel's tangent g k_b + f_b dg/du (dg/du through
+    k_b on the force side) is the derivative of the pinched force."""
+    vals = PL if base == "plasticity" else BW
+    fb = simulate_force(base, vals, u)
+    prm = {"pinch": p, "pinch_width": w, "pinch_angle": phi}
+    f = simulate_force(f"{base}+pinching", {**vals, **prm}, u)
+    np.testing.assert_allclose(f, fb * _pinch_g(u, fb, **prm), rtol=1e-10, atol=1e-13)
+
+    def derivative(spec, pk):
+        sc = np.array(spec.initial_state, dtype=float)
+        stt = sc.copy()
+        for x in u[:-1]:
+            spec.step(pk, sc, x, 0.0, 1.0, stt)
+            sc[:] = stt
+        h = 1e-8
+        _, k, _ = spec.step(pk, sc, u[-1], 0.0, 1.0, stt.copy())
+        fp, _, _ = spec.step(pk, sc, u[-1] + h, 0.0, 1.0, stt.copy())
+        fm, _, _ = spec.step(pk, sc, u[-1] - h, 0.0, 1.0, stt.copy())
+        return k, (fp - fm) / (2 * h)
+
+    kb, db = derivative(get(base), get(base).pack(vals))
+    assume(abs(kb - db) <= 1e-6 * (1 + abs(kb)))  # not at a kink, not an algorithmic tangent
+    k, d = derivative(get(f"{base}+pinching"), get(f"{base}+pinching").pack({**vals, **prm}))
+    assert k == pytest.approx(d, rel=1e-4, abs=1e-4 * (1 + abs(kb)))

@@ -21,7 +21,7 @@ into the diagnosis's catalogue; each effect has
   asymmetry     r against |F| (a scaling that is even in the force, not odd)
   slip          r sgn(F) against the excess of |F| over its 80th percentile (capped force)
   stiffening    r sgn(u) against (|u| - half the peak)_+^2, added force only (smooth stiffening)
-  pinching      r sgn(F) on a band of small |u| below the previous peak, force removed only
+  pinching      r sgn(F) on a band of small predicted |F| below the previous peak, force removed only
   scragging     r sgn(F) against the running peak |u| beyond |u| (permanent softening)
   ============  ======================================================================
 """

@@ -28,10 +28,12 @@ parameters (``EffectSpec.neutral``).
 
 Kernels of an effect module
 ---------------------------
-* an inner effect: ``apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka) -> (g, dg, fa, ka)``,
+* an inner effect: ``apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka) -> (g, dg, fa, ka)``,
   with ``po`` / ``so`` the offsets of its parameters in ``p`` and of its state in ``sc``/``st``,
-  ``fb`` the base force [kN], ``g, dg`` the scaling so far and its derivative [1/m], ``fa, ka``
-  the additive force [kN] and tangent [kN/m] so far; it writes its trial state into ``st``;
+  ``fb, kb`` the base force [kN] and tangent [kN/m] (an effect that scales by a function of the
+  base force, ``g(f_b)``, needs ``kb`` for its derivative ``dg/du = g'(f_b) k_b``), ``g, dg`` the
+  scaling so far and its derivative [1/m], ``fa, ka`` the additive force [kN] and tangent [kN/m]
+  so far; it writes its trial state into ``st``;
 * a series effect: ``capacity(p, po) -> F_s`` [kN], the slider's capacity; its one state
   variable (at ``so``) is the slider displacement u_s [m].
 """

@@ -46,10 +46,10 @@ def inner(p, sc, u, v, dt, st):
     dg = 0.0
     fa = 0.0
     ka = 0.0
-    g, dg, fa, ka = effect_1(p, P_1, sc, st, S_1, u, v, dt, fb, g, dg, fa, ka)
-    g, dg, fa, ka = effect_2(p, P_2, sc, st, S_2, u, v, dt, fb, g, dg, fa, ka)
-    g, dg, fa, ka = effect_3(p, P_3, sc, st, S_3, u, v, dt, fb, g, dg, fa, ka)
-    g, dg, fa, ka = effect_4(p, P_4, sc, st, S_4, u, v, dt, fb, g, dg, fa, ka)
+    g, dg, fa, ka = effect_1(p, P_1, sc, st, S_1, u, v, dt, fb, kb, g, dg, fa, ka)
+    g, dg, fa, ka = effect_2(p, P_2, sc, st, S_2, u, v, dt, fb, kb, g, dg, fa, ka)
+    g, dg, fa, ka = effect_3(p, P_3, sc, st, S_3, u, v, dt, fb, kb, g, dg, fa, ka)
+    g, dg, fa, ka = effect_4(p, P_4, sc, st, S_4, u, v, dt, fb, kb, g, dg, fa, ka)
     return g * fb + fa, g * kb + fb * dg + ka, 0
 
 

@@ -4,7 +4,7 @@ from numba import njit
 
 
 @njit(cache=True, inline="always")
-def no_effect(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+def no_effect(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
     """An empty inner-effect position: (g, dg, fa, ka) unchanged."""
     return g, dg, fa, ka
 

@@ -14,7 +14,7 @@ from rrfrei.laws.registry import ParamSpec, Prior
 
 
 @njit(cache=True, inline="always")
-def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
     """Scale by 1 + a sgn(f_b) (contract in :mod:`rrfrei.laws.effects`)."""
     s = 1.0 if fb > 0.0 else (-1.0 if fb < 0.0 else 0.0)
     gi = 1.0 + p[po] * s

@@ -17,7 +17,7 @@ from rrfrei.laws.registry import ParamSpec, Prior
 
 
 @njit(cache=True, inline="always")
-def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
     """Scale by 1 / (1 + deg_rate E_max) (contract in :mod:`rrfrei.laws.effects`)."""
     up = sc[so]
     fp = sc[so + 1]

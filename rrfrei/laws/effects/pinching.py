@@ -1,17 +1,41 @@
-"""Effect ``pinching``: reduced force near zero displacement once the bearing has been loaded
-(inner, scaling).
+"""Effect ``pinching``: slack near zero force, the loop pinched where it crosses a line through
+the origin (inner, scaling by a function of the base force and displacement).
 
-Slack or gap closing (the pinching of the BWBN model, Baber & Noori 1986; Foliente 1995): after
-the first excursion, the force is reduced in a band of width ``u_p`` about ``u = 0``, and the
-reduction vanishes at the largest |u| reached so far, ``u_max``, so the force stays continuous::
+Slack or gap closing, the pinching of the BWBN model (Baber & Noori 1986, "Modeling general
+hysteresis behavior and random vibration application", J. Vib. Acoust. 108; Foliente 1995,
+"Hysteresis modeling of wood joints and structural systems", J. Struct. Eng. 121(6)): there the
+hysteretic variable z grows slowly, ``dz/du`` scaled by ``h(z) = 1 - zeta_1 exp(-(z sgn(du) -
+q)^2 / zeta_2^2)``, while |z| is small, so the stiffness is reduced near *zero force*, away from
+u = 0 in a loop with hysteresis.  As an effect that wraps any law the reduction acts on the base
+force ``f_b`` at the pinching coordinate
 
-    g = 1 - p [exp(-(u / u_p)^2) - exp(-(u_max / u_p)^2)]      for |u| < u_max, else 1
+    xi = cos(phi) f_b / F_max - sin(phi) u / u_max
 
-(``u_max`` committed; virgin loading is unpinched).  ``g`` depends on ``u`` and ``u_max`` only, so
-a cycle at a constant amplitude closes; with ``0 <= p < 1`` it is in (0, 1], so the loop area is
-smaller than the base law's.  Neutral: ``pinch = 0``.
+(``F_max``, ``u_max`` the largest |f_b| and |u| committed so far): ``xi = 0`` is a line through
+the origin of the loop, normalised by its previous peaks.  ``phi = 0`` pinches where the base
+force is zero (BWBN, slip-lock), ``phi = atan(k2 u_max / F_max)`` where its hysteretic part is
+zero, ``phi = +-pi/2`` at zero displacement (the earlier displacement-space kernel's place).  The
+slack has a finite extent (the gap closes, Baber & Noori's slip-lock element), so the reduction is
+a compact C1 bump, half-width ``w`` in ``xi``::
 
-State (1): ``[u_max]`` [m].
+    F = g f_b,   g = 1 - p b(xi / w),   b(x) = (1 - x^2)^2 for |x| < 1, else 0
+    dg/du = -p b'(xi / w) / w (cos(phi) k_b / F_max - sin(phi) / u_max),  b'(x) = -4 x (1 - x^2)
+
+so the tangent needs the base law's ``k_b`` (effect contract, :mod:`rrfrei.laws.effects`).  At
+``phi = 0``, ``dF/df_b = 1 - p (1 - x^2)(1 - 5 x^2) >= 1 - p > 0``: the force stays monotonic
+in the base force and the stiffness at zero force is ``(1 - p) k_b``.  ``g`` depends on the state
+only through the committed peaks, so a cycle at a constant amplitude closes; with
+``0 <= p < 1``, ``0 < g <= 1`` and the force is never larger in magnitude than the base force
+(the loop dissipates less).  Before the first step (``F_max = 0`` or ``u_max = 0``) ``g = 1``.
+Neutral: ``pinch = 0`` (any width and angle).
+
+Slack is local: the diagnosis fits the half-width in ``w <= 0.5`` (its box, the physical bound is
+wider), so a band never spans more than half of the previous peaks either side of the line.  A
+softening below the previous peak that reaches out to ``u_max`` is Mullins' (:mod:`.mullins`);
+at ``phi = pi/2`` both are functions of ``|u| / u_max`` alone and the band's width is what tells
+them apart (docs/gap/validation.md, "Why the misses").
+
+State (2): ``[F_max [kN], u_max [m]]``.
 """
 
 import math
@@ -25,47 +49,58 @@ from rrfrei.laws.registry import ParamSpec, Prior
 
 
 @njit(cache=True, inline="always")
-def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
-    """Scale by 1 - p [exp(-(u/u_p)^2) - exp(-(u_max/u_p)^2)] below u_max (contract in
+def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
+    """Scale by 1 - p b(xi / w), xi = cos(phi) f_b / F_max - sin(phi) u / u_max (contract in
     :mod:`rrfrei.laws.effects`)."""
-    um = sc[so]
-    a = abs(u)
-    st[so] = max(um, a)
+    fm = sc[so]
+    um = sc[so + 1]
+    st[so] = max(fm, abs(fb))
+    st[so + 1] = max(um, abs(u))
     pin = p[po]
-    if pin != 0.0 and a < um:
+    if pin != 0.0 and fm > 0.0 and um > 0.0:
         w = p[po + 1]
-        x = u / w
-        e = math.exp(-x * x)
-        xm = um / w
-        gi = 1.0 - pin * (e - math.exp(-xm * xm))
-        dgi = 2.0 * pin * x / w * e
-        dg = dg * gi + g * dgi
-        g = g * gi
+        phi = p[po + 2]
+        c = math.cos(phi)
+        s = math.sin(phi)
+        x = (c * fb / fm - s * u / um) / w
+        if abs(x) < 1.0:
+            q = 1.0 - x * x
+            gi = 1.0 - pin * q * q
+            dgi = 4.0 * pin * x * q / w * (c * kb / fm - s / um)
+            dg = dg * gi + g * dgi
+            g = g * gi
     return g, dg, fa, ka
 
 
 def _screen(ctx) -> float:
-    """r sgn(F) against a narrow band of |u| near 0 on branches below the previous peak |u|
-    (the force there is smaller: a negative association; positive scores 0)."""
+    """r sgn(F) against a band of small predicted |F| (below a fifth of its peak) on branches
+    below the previous peak |u| (the force there is smaller: a negative association; positive
+    scores 0)."""
     a = np.abs(ctx.disp)
-    peak = float(a.max()) if a.size else 0.0
+    fp = np.abs(ctx.force_pred)
+    peak = float(fp.max()) if fp.size else 0.0
     before = np.concatenate([[0.0], np.maximum.accumulate(a)[:-1]])
-    band = (a < 0.15 * peak) & (a < before)
-    return max(-signed_partial(ctx.resid * force_sign(ctx), band.astype(float), [a]), 0.0)
+    band = (fp < 0.2 * peak) & (a < before)
+    return max(-signed_partial(ctx.resid * force_sign(ctx), band.astype(float), [a, fp]), 0.0)
 
 
 HINTS = DiagnosisHints(
     _screen,
-    lambda s: [{"pinch": 0.3, "pinch_width": 0.2 * s.disp}, {"pinch": 0.6, "pinch_width": 0.1 * s.disp}],
-    lambda s: {"pinch": 0.3, "pinch_width": 0.2 * s.disp},
-    lambda s: {"pinch_width": (0.02 * s.disp, s.disp)}, order=8)
+    lambda s: [{"pinch": 0.6, "pinch_width": 0.4, "pinch_angle": 0.5},
+               {"pinch": 0.5, "pinch_width": 0.4, "pinch_angle": 1.4}],
+    lambda s: {"pinch": 0.3, "pinch_width": 0.3, "pinch_angle": 0.5},
+    lambda s: {"pinch_width": (0.05, 0.5)}, order=8)
 
 
 EFFECT = register_effect(EffectSpec(
     "pinching",
-    (ParamSpec("pinch", "-", 0.0, 0.95, "largest relative force reduction at u = 0 once loaded",
+    (ParamSpec("pinch", "-", 0.0, 0.95, "largest relative force reduction, on the pinching line",
                Prior("uniform", 0.0, 0.9)),
-     ParamSpec("pinch_width", "m", 1e-6, 1e3, "half-width of the pinched band about u = 0",
-               Prior("halfnormal", 1.0))),
-    1, "pinching: slack (gap closing) near zero displacement on later cycles", (0.0, 1.0),
-    apply=apply, hints=HINTS))
+     ParamSpec("pinch_width", "-", 1e-3, 10.0,
+               "half-width of the pinched band in the normalised coordinate xi",
+               Prior("halfnormal", 1.0)),
+     ParamSpec("pinch_angle", "rad", -math.pi / 2, math.pi / 2,
+               "angle of the pinching line: 0 at zero force, +-pi/2 at zero displacement",
+               Prior("uniform", -math.pi / 2, math.pi / 2))),
+    2, "pinching: slack near zero force (BWBN), where the loop crosses a line through the origin",
+    (0.0, 0.5, 0.0), apply=apply, hints=HINTS))

@@ -13,7 +13,7 @@ from rrfrei.laws.registry import ParamSpec, Prior
 
 
 @njit(cache=True, inline="always")
-def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
     """Add c sgn(v) |v|^a, tangent c a |v|^(a-1) / dt (contract in :mod:`rrfrei.laws.effects`)."""
     c = p[po]
     a = p[po + 1]

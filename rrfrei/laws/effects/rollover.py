@@ -16,7 +16,7 @@ from rrfrei.laws.registry import ParamSpec, Prior
 
 
 @njit(cache=True, inline="always")
-def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
     """Add k_r sgn(u) (|u| - u_r)_+ (contract in :mod:`rrfrei.laws.effects`)."""
     ex = abs(u) - p[po + 1]
     if ex > 0.0:

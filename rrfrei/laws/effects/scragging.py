@@ -25,7 +25,7 @@ from rrfrei.laws.registry import ParamSpec, Prior
 
 
 @njit(cache=True, inline="always")
-def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
     """Scale by 1 - s (1 - exp(-u_max / u_c)) (contract in :mod:`rrfrei.laws.effects`)."""
     a = abs(u)
     um = max(sc[so], a)

@@ -20,7 +20,7 @@ from rrfrei.laws.registry import ParamSpec, Prior
 
 
 @njit(cache=True, inline="always")
-def apply(p, po, sc, st, so, u, v, dt, fb, g, dg, fa, ka):
+def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
     """Add k_s sgn(u) (|u| - u_s)_+^2 / (2 u_s) (contract in :mod:`rrfrei.laws.effects`)."""
     k = p[po]
     us = p[po + 1]
