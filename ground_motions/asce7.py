@@ -62,7 +62,8 @@ import numpy as np
 
 from .pairs import RecordPair
 from .rotd import rotd_spectrum
-from .spectra import Spectrum, design_spectrum
+from .scaling import Target, target_psa
+from .spectra import design_spectrum
 
 #: Minimum number of pairs in a suite (ASCE 7-22 Section 17.3.2).
 MIN_PAIRS = 7
@@ -71,7 +72,6 @@ RANGE_FACTORS = (0.75, 1.25)
 #: MCE_R = 1.5 x design spectrum (ASCE 7-22 Section 11.4.6; module docstring).
 MCER_OVER_DESIGN = 1.5
 
-Target = Spectrum | Callable[[np.ndarray], np.ndarray] | tuple[np.ndarray, np.ndarray]
 
 
 class SuiteSizeWarning(UserWarning):
@@ -92,39 +92,6 @@ def mcer_target(sds: float, sd1: float, tl: float) -> Callable[[np.ndarray], np.
     return target
 
 
-def _target_values(target: Target, periods: np.ndarray, where: str = "scale_pairs_asce7") -> np.ndarray:
-    if isinstance(target, Spectrum):
-        values = target.at(periods)
-    elif callable(target):
-        values = np.asarray(target(periods), dtype=np.float64)
-    else:
-        try:
-            tp, tv = (np.asarray(x, dtype=np.float64) for x in target)
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"{where}: target must be a Spectrum, a callable T -> PSA [m/s^2] (e.g. "
-                f"mcer_target(sds, sd1, tl)) or a (periods, psa) pair, got {type(target).__name__}"
-            ) from None
-        if tp.ndim != 1 or tp.shape != tv.shape or tp.size < 2 or np.any(np.diff(tp) <= 0):
-            raise ValueError(
-                f"{where}: a (periods, psa) target needs two 1-D arrays of equal length >= 2 "
-                "with increasing periods"
-            )
-        if periods[0] < tp[0] or periods[-1] > tp[-1]:
-            raise ValueError(
-                f"{where}: the target is given for T = {tp[0]:g}..{tp[-1]:g} s, not over the periods "
-                f"{periods[0]:g}..{periods[-1]:g} s"
-            )
-        values = np.interp(periods, tp, tv)
-    values = np.broadcast_to(values, periods.shape)
-    ok = np.isfinite(values) & (values > 0.0)
-    if not np.all(ok):
-        i = int(np.flatnonzero(~ok)[0])
-        raise ValueError(
-            f"{where}: target PSA at T = {periods[i]:g} s is {float(values[i])!r}; must be finite "
-            "and > 0 m/s^2"
-        )
-    return np.array(values, dtype=np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -288,7 +255,7 @@ def scale_pairs_asce7(
         )
     lo, hi = RANGE_FACTORS[0] * tu, RANGE_FACTORS[1] * tl
     periods = np.geomspace(lo, hi, int(n_periods))
-    tgt = _target_values(target, periods)
+    tgt = target_psa(target, periods, where="scale_pairs_asce7")
     rot = np.array([rotd_spectrum(p, periods, damping, percentile=100, n_angles=n_angles).psa[0]
                     for p in suite])
     for i, row in enumerate(rot):

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .record import G, Record
+from .scaling import target_psa
 from .spectra import Spectrum
 
 _QUANTITY = {
@@ -137,7 +138,7 @@ def plot_rotd(
     ax.plot(t, rot.rotd50.psa * factor, lw=1.4, color="C0", label="RotD50")
     ax.plot(t, rot.rotd100.psa * factor, lw=1.6, color="C3", label="RotD100 (maximum direction)")
     if target is not None:
-        ax.plot(t, _target_psa(target, t) * factor, "k--", lw=1.4, label=target_label)
+        ax.plot(t, target_psa(target, t, where="plot_rotd") * factor, "k--", lw=1.4, label=target_label)
     if period_range is not None:
         ax.axvspan(*period_range, color="0.9", zorder=0, label="scaling range")
     if logx:
@@ -172,9 +173,3 @@ def plot_scaled_suite(suite, ax=None, *, units: str = "g"):
     ax.legend(fontsize="small")
     ax.grid(True, which="both", lw=0.3)
     return ax
-
-
-def _target_psa(target, periods: np.ndarray) -> np.ndarray:
-    from .asce7 import _target_values
-
-    return _target_values(target, periods, where="plot_rotd")

@@ -23,7 +23,10 @@ def scale_to_pga(record: Record, pga: float) -> Record:
     return record.scaled(target / record.pga)
 
 
-def _target_psa(target: Target, periods: np.ndarray) -> np.ndarray:
+def target_psa(target: Target, periods: np.ndarray, where: str = "scale_to_spectrum") -> np.ndarray:
+    """The target spectrum's PSA [m/s^2] at ``periods`` [s]: from a :class:`Spectrum`, a callable
+    T -> PSA, or a (periods, psa) pair (linear interpolation; it must cover ``periods``: never
+    extrapolated).  ValueError, prefixed by ``where``, for anything else or a PSA <= 0."""
     if isinstance(target, Spectrum):
         values = target.at(periods)
     elif callable(target):
@@ -33,17 +36,30 @@ def _target_psa(target: Target, periods: np.ndarray) -> np.ndarray:
             tp, tv = (np.asarray(x, dtype=np.float64) for x in target)
         except (TypeError, ValueError):
             raise ValueError(
-                "scale_to_spectrum: target must be a Spectrum, a callable T -> PSA [m/s^2], or a "
-                f"(periods, psa) pair, got {type(target).__name__}"
+                f"{where}: target must be a Spectrum, a callable T -> PSA [m/s^2] (e.g. "
+                f"ground_motions.mcer_target(sds, sd1, tl)) or a (periods, psa) pair, got "
+                f"{type(target).__name__}"
             ) from None
+        if tp.ndim != 1 or tp.shape != tv.shape or tp.size < 2 or np.any(np.diff(tp) <= 0):
+            raise ValueError(
+                f"{where}: a (periods, psa) target needs two 1-D arrays of equal length >= 2 "
+                "with increasing periods"
+            )
+        if periods[0] < tp[0] or periods[-1] > tp[-1]:
+            raise ValueError(
+                f"{where}: the target is given for T = {tp[0]:g}..{tp[-1]:g} s, not over the periods "
+                f"{periods[0]:g}..{periods[-1]:g} s"
+            )
         values = np.interp(periods, tp, tv)
     values = np.broadcast_to(values, periods.shape)
-    if not np.all(np.isfinite(values) & (values > 0.0)):
-        bad = int(np.flatnonzero(~(np.isfinite(values) & (values > 0.0)))[0])
+    ok = np.isfinite(values) & (values > 0.0)
+    if not np.all(ok):
+        i = int(np.flatnonzero(~ok)[0])
         raise ValueError(
-            f"scale_to_spectrum: target PSA at T = {periods[bad]:g} s is {values[bad]!r}; must be > 0"
+            f"{where}: target PSA at T = {periods[i]:g} s is {float(values[i])!r}; must be finite "
+            "and > 0 m/s^2"
         )
-    return values
+    return np.array(values, dtype=np.float64)
 
 
 def scale_to_spectrum(
@@ -92,7 +108,7 @@ def scale_to_spectrum(
     if not recs:
         raise ValueError("scale_to_spectrum: no records given")
     periods = np.geomspace(lo, hi, int(n_periods))
-    tgt = _target_psa(target, periods)
+    tgt = target_psa(target, periods)
     psa = np.array([response_spectrum(r, periods, damping).psa for r in recs])
     if np.any(psa <= 0.0):
         raise ValueError("scale_to_spectrum: a record has zero spectral acceleration in the period range")

@@ -297,20 +297,7 @@ def time_history_batch(
     spec, chain = _model(building)
     solver = _solver(gamma, beta, tol, max_iter, max_subdivisions, robust_local_solve(spec, local_solver))
     name, ag, h = _ground(record, dt)
-    P = np.asarray(params, dtype=float)
-    if P.ndim == 1:
-        P = P[None, :]
-    if P.ndim != 2 or P.shape[1] != len(spec.param_names):
-        raise ValueError(
-            f"params must be an (m, {len(spec.param_names)}) array for law {spec.name!r} "
-            f"({', '.join(spec.param_names)}), got shape {P.shape}"
-        )
-    for r in range(P.shape[0]):
-        try:
-            spec.pack(P[r])
-        except ValueError as exc:
-            raise ValueError(f"params row {r}: {exc}") from None
-    P = np.ascontiguousarray(P)
+    P = param_rows(spec, params)
     runs = P.shape[0]
     if n_blocks is None:
         n_blocks = 4 * numba.get_num_threads()
@@ -336,3 +323,23 @@ def time_history_batch(
     out["status"] = res.status
     out["converged"] = ok
     return out
+
+
+def param_rows(spec: LawSpec, params) -> np.ndarray:
+    """``params`` as a contiguous (m, p) float array of parameter sets of law ``spec`` (one set
+    may be given as a 1-D array), each row validated by ``spec.pack``; ValueError naming the
+    expected shape or the row and the parameter."""
+    P = np.asarray(params, dtype=float)
+    if P.ndim == 1:
+        P = P[None, :]
+    if P.ndim != 2 or P.shape[1] != len(spec.param_names):
+        raise ValueError(
+            f"params must be an (m, {len(spec.param_names)}) array for law {spec.name!r} "
+            f"({', '.join(spec.param_names)}), got shape {P.shape}"
+        )
+    for r in range(P.shape[0]):
+        try:
+            spec.pack(P[r])
+        except ValueError as exc:
+            raise ValueError(f"params row {r}: {exc}") from None
+    return np.ascontiguousarray(P)

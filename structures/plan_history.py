@@ -31,7 +31,15 @@ from rrfrei.laws import plan as plan_laws
 from structures import energy as _energy
 from structures import plan_energy as _plan_energy
 from structures.building import ShearBuilding
-from structures.history import _DEFAULT_LEVELS, _DEFAULT_MAX_ITER, ConvergenceError, Response, _model, _solver
+from structures.history import (
+    _DEFAULT_LEVELS,
+    _DEFAULT_MAX_ITER,
+    ConvergenceError,
+    Response,
+    _model,
+    _solver,
+    param_rows,
+)
 from structures.newmark_records import Chain, Layer
 from structures.plan_newmark_records import PlanBatch, PlanHistories
 
@@ -411,19 +419,7 @@ def plan_time_history_batch(
     else:
         pspec = plan_laws.get(building.isolator.law if law is None else law)
         spec = pspec.law
-        P = np.asarray(params, dtype=float)
-        if P.ndim == 1:
-            P = P[None, :]
-        if P.ndim != 2 or P.shape[1] != len(spec.param_names):
-            raise ValueError(
-                f"params must be an (m, {len(spec.param_names)}) array for law {spec.name!r} "
-                f"({', '.join(spec.param_names)}), got shape {P.shape}"
-            )
-        for r in range(P.shape[0]):
-            try:
-                spec.pack(P[r])
-            except ValueError as exc:
-                raise ValueError(f"params row {r}: {exc}") from None
+        P = param_rows(spec, params)
     P = np.ascontiguousarray(P)
     chain_x, chain_y = _chains(building, building_y)
     solver = _solver(gamma, beta, tol, max_iter, max_subdivisions, False)

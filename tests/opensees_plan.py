@@ -128,3 +128,37 @@ def element_force_recorder(ops, law: str, params: dict, disp, path: str | None =
         if own:
             os.unlink(path)
     return data[-disp.shape[0]:, 6:8]
+
+
+RTOL = 1e-9
+"""Largest force difference against the OpenSees element, relative to the history's peak |F|."""
+
+
+def rrfrei_force_and_failure(law: str, params: dict, disp) -> tuple[np.ndarray | None, int]:
+    """(forces (n, 2) or None, failing sample or -1) of ``rrfrei.simulate_force`` on the path."""
+    import re
+
+    import rrfrei
+
+    try:
+        return rrfrei.simulate_force(law, params, disp), -1
+    except ValueError as exc:
+        m = re.search(r"failed at sample (\d+)", str(exc))
+        assert m, str(exc)
+        return None, int(m.group(1))
+
+
+def check_against_opensees(ops, law: str, params: dict, disp, rtol: float = RTOL) -> None:
+    """The law fails at the sample where the OpenSees element's local solve first fails, or
+    neither fails and the forces agree to ``rtol`` of the peak |F|."""
+    f, fail = rrfrei_force_and_failure(law, params, disp)
+    f_os, n_ok, fail_os = element_force_and_failure(ops, law, params, disp)
+    assert fail == fail_os, f"local failure at sample {fail} here, {fail_os} in OpenSees"
+    if fail < 0:
+        assert n_ok == disp.shape[0]
+        scale = np.max(np.abs(f_os))
+        if scale == 0.0:
+            assert np.all(f == 0.0)
+        else:
+            err = np.max(np.abs(f - f_os))
+            assert err <= rtol * scale, f"max error {err:.3e} kN, peak force {scale:.3e} kN"

@@ -11,7 +11,6 @@ The laws under test are those of :func:`rrfrei.laws.plan.names` with an OpenSees
 :data:`PLAN_PARAMS` (a law without one is skipped, with the reason).
 """
 
-import re
 
 import numpy as np
 import pytest
@@ -24,9 +23,15 @@ from _law_strategies import (
 )
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from opensees_plan import PLAN_LAWS, element_force, element_force_and_failure, element_force_recorder
+from opensees_plan import (
+    PLAN_LAWS,
+    check_against_opensees,
+    element_force,
+    element_force_and_failure,
+    element_force_recorder,
+    rrfrei_force_and_failure,
+)
 
-import rrfrei
 from rrfrei.laws import plan
 
 pytestmark = pytest.mark.opensees
@@ -51,30 +56,6 @@ def _law_param(name):
 
 
 LAW_PARAMS = [_law_param(name) for name in LAWS]
-
-
-def _ours(law, p, disp):
-    """(force, failing sample or -1)."""
-    try:
-        return rrfrei.simulate_force(law, p, disp), -1
-    except ValueError as exc:
-        m = re.search(r"failed at sample (\d+)", str(exc))
-        assert m, str(exc)
-        return None, int(m.group(1))
-
-
-def _check_against_opensees(ops, law, p, disp):
-    f, fail = _ours(law, p, disp)
-    f_os, n_ok, fail_os = element_force_and_failure(ops, law, p, disp)
-    assert fail == fail_os, f"local failure at sample {fail} here, {fail_os} in OpenSees"
-    if fail < 0:
-        assert n_ok == disp.shape[0]
-        scale = np.max(np.abs(f_os))
-        if scale == 0.0:
-            assert np.all(f == 0.0)
-        else:
-            err = np.max(np.abs(f - f_os))
-            assert err <= RTOL * scale, f"max error {err:.3e} kN, peak force {scale:.3e} kN"
 
 
 # ---------------------------------------------------------------------------- paths [m]
@@ -144,7 +125,7 @@ def test_fixed_orbits_equal_opensees(ops, law, path):
         "diagonal": np.c_[0.05 * np.sin(t), 0.05 * np.sin(t)] * [1.0, -0.7],
         "spiral": np.c_[env * np.cos(3 * t), env * np.sin(3 * t)],
     }[path]
-    _check_against_opensees(ops, law, PROTOCOL_PARAMS[law], disp)
+    check_against_opensees(ops, law, PROTOCOL_PARAMS[law], disp)
 
 
 @pytest.mark.parametrize("law", [law for law in LAWS if law in PROTOCOL_PARAMS])
@@ -166,7 +147,7 @@ def test_recorder_fast_path_equals_step_by_step_harness(ops, law):
 def test_random_paths_equal_opensees(ops, law, path, data):
     p = data.draw(PLAN_PARAMS[law](), label="params")
     disp = data.draw(PATHS[path](), label="disp")
-    _check_against_opensees(ops, law, p, disp)
+    check_against_opensees(ops, law, p, disp)
 
 
 @pytest.mark.slow
@@ -179,7 +160,7 @@ def test_random_paths_equal_opensees_sweep(ops, law, path, data):
     p = data.draw(PLAN_PARAMS[law](), label="params")
     disp = data.draw(PATHS[path]() if path != "random" else plan_histories(max_size=300),
                      label="disp")
-    _check_against_opensees(ops, law, p, disp)
+    check_against_opensees(ops, law, p, disp)
 
 
 @pytest.mark.skipif("bouc_wen" not in LAWS, reason="no plan bouc_wen law")
@@ -189,6 +170,6 @@ def test_bouc_wen_local_newton_failure_matches_opensees(ops):
     p = dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.0, mu=2.0, eta=9.181247277429936,
              beta=0.1979643833210143, gamma=0.28589263260021625)
     disp = np.array([[0.001, 0.0005], [0.002, 0.001], [-0.169674, -0.12]])
-    f, fail = _ours("bouc_wen", p, disp)
+    f, fail = rrfrei_force_and_failure("bouc_wen", p, disp)
     _, _, fail_os = element_force_and_failure(ops, "bouc_wen", p, disp)
     assert fail == fail_os == 2

@@ -12,7 +12,6 @@ and, well beyond yield, below what two independent springs would claim, tending 
 """
 
 import math
-import re
 
 import numpy as np
 import opensees_plan
@@ -20,7 +19,7 @@ import pytest
 from _law_strategies import elastomeric_x_params, hdr_params, histories, logu
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from opensees_plan import _build, _CaptureStderr
+from opensees_plan import _build, _CaptureStderr, check_against_opensees, element_force_and_failure
 
 import rrfrei
 from rrfrei.laws import plan
@@ -92,55 +91,6 @@ PATHS = {"circle": circles, "figure_eight": figure_eights, "random": random_path
 
 
 # --- the two sides ----------------------------------------------------------------------------
-
-def opensees_force(ops, law, p, disp):
-    """(force (n, 2), n_ok, first local failure or -1) of the OpenSees 3-D element.
-
-    As ``tests/opensees_plan.element_force`` plus the sample of the element's first ``update()``
-    warning (a failed local Newton solve, which openseespy does not turn into a failed step)."""
-    _build(ops, law, p, disp)
-    out = np.full(disp.shape, np.nan)
-    n_ok, first_fail = disp.shape[0], -1
-    with _CaptureStderr() as cap:
-        seen = 0
-        for i in range(disp.shape[0]):
-            status = ops.analyze(1)
-            text = cap.text()
-            if first_fail < 0 and "update()" in text[seen:]:
-                first_fail = i
-            seen = len(text)
-            if status != 0:
-                n_ok = i
-                break
-            r = ops.eleResponse(1, "force")
-            out[i] = r[6], r[7]
-        ops.wipe()
-    return out, n_ok, first_fail
-
-
-def ours(law, p, disp):
-    """(force or None, failing sample or -1)."""
-    try:
-        return rrfrei.simulate_force(law, p, disp), -1
-    except ValueError as exc:
-        m = re.search(r"failed at sample (\d+)", str(exc))
-        assert m, str(exc)
-        return None, int(m.group(1))
-
-
-def check_against_opensees(ops, law, p, disp):
-    f, fail = ours(law, p, disp)
-    f_os, n_ok, fail_os = opensees_force(ops, law, p, disp)
-    assert fail == fail_os, f"local failure at sample {fail} here, {fail_os} in OpenSees"
-    if fail < 0:
-        assert n_ok == disp.shape[0]
-        scale = np.max(np.abs(f_os))
-        if scale == 0.0:
-            assert np.all(f == 0.0)
-        else:
-            err = np.max(np.abs(f - f_os)) / scale
-            assert err <= RTOL, f"max relative force error {err:.3g}"
-
 
 def opensees_tangent(ops, law, p, disp):
     """(force (n, 2), tangent (n, 2, 2)) of the OpenSees 3-D element on the model of
@@ -272,7 +222,7 @@ def test_the_harness_vertical_constants_do_not_enter_the_shear_law(ops, law, mon
     HDR's geometry, which sets only its vertical terms) leave OpenSees' shear forces unchanged,
     also on an orbit wider than HDR's diameter (acos(|U|/D2) is NaN there, unused)."""
     d = circle(0.4, 60, 2, ramp=8)
-    f_os, n_ok, _ = opensees_force(ops, law, FIXED[law], d)
+    f_os, n_ok, _ = element_force_and_failure(ops, law, FIXED[law], d)
     assert n_ok == len(d)
     plain = opensees_plan._plan_element_args
 
@@ -283,7 +233,7 @@ def test_the_harness_vertical_constants_do_not_enter_the_shear_law(ops, law, mon
         return args
 
     monkeypatch.setattr(opensees_plan, "_plan_element_args", other_vertical)
-    f_other, _, _ = opensees_force(ops, law, FIXED[law], d)
+    f_other, _, _ = element_force_and_failure(ops, law, FIXED[law], d)
     np.testing.assert_array_equal(f_other, f_os)
     check_against_opensees(ops, law, FIXED[law], d)
 
