@@ -21,10 +21,7 @@ du = u - u_C, solved for z by Newton's method on the two components, from the cu
     Df     = the 2x2 Jacobian of OpenSees (l.523-530, term by term, sign terms held constant)
     z <- z - Df^-1 f
 
-(|z|^(eta-2) is formed as (|z|^2)^((eta-2)/2), |z|^(eta-4) as |z|^(eta-2) / |z|^2 and z_i^3 as
-z_i^2 z_i: one ``pow`` and no square root per iteration where OpenSees calls four ``pow``; the
-same numbers to rounding) with |z| = DBL_EPSILON
-where z = 0 (l.510-544), while |dz| >= tol = 1e-12 and iter < maxIter = 25
+with |z| = DBL_EPSILON where z = 0 (l.510-544), while |dz| >= tol = 1e-12 and iter < maxIter = 25
 (the element's defaults, l.149-150).  Df^-1 f is solved as OpenSees' ``Vector::operator/(Matrix)`` does:
 LAPACK ``dgesv`` (``dgetrf2`` LU with partial pivoting, L scaled by the reciprocal pivot,
 ``dgetrs`` with reference-BLAS ``dtrsm``); a singular U leaves dz = f, as ``dgesv`` leaves the
@@ -143,22 +140,21 @@ def step(p, sc, u, v, dt, st, f, k):
     it = 0
     tmp2 = 0.0
     pw2 = 0.0
-    half_em2 = 0.5 * em2
     while True:
-        zn2 = z0 * z0 + z1 * z1  # |z|^2: the powers below need no square root
-        if zn2 == 0.0:
-            zn2 = DBL_EPSILON * DBL_EPSILON
+        znrm = math.sqrt(z0 * z0 + z1 * z1)
+        if znrm == 0.0:
+            znrm = DBL_EPSILON
         tmp1 = z0 * du0 + z1 * du1
         tmp2 = gamma + beta * sgn(tmp1)
-        pw2 = zn2 ** half_em2  # |z|^(eta-2)
+        pw2 = znrm ** (eta - 2.0)
         tmp3 = pw2 * tmp1 * tmp2
-        tmp4 = pw2 / zn2 * tmp2  # |z|^(eta-4) from |z|^(eta-2): one pow per iteration
+        tmp4 = znrm ** (eta - 4.0) * tmp2
         f0 = (z0 - zc0) - iuy * (A * du0 - z0 * tmp3)
         f1 = (z1 - zc1) - iuy * (A * du1 - z1 * tmp3)
         a0 = z0 * z0
         a1 = z1 * z1
-        c0 = a0 * z0
-        c1 = a1 * z1
+        c0 = z0 ** 3.0
+        c1 = z1 ** 3.0
         t = tmp4 / uy
         d00 = 1.0 + t * (c1 * du1 + 2.0 * a1 * z0 * du0 + z1 * a0 * du1 * em1 + c0 * du0 * eta)
         d10 = z1 * tmp4 / uy * (a1 * du0 + z0 * z1 * du1 * em2 + a0 * du0 * em1)
