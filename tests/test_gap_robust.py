@@ -330,3 +330,24 @@ def test_cli_time_budget_none_means_no_limit():
     from rrfrei.budget import seconds_arg as time_budget_arg
 
     assert time_budget_arg("none") is None and time_budget_arg("90") == 90.0
+
+
+@pytest.mark.parametrize("n_ok", [0, 1, 3])
+def test_a_band_from_few_surviving_draws_is_as_wide_as_the_noise_and_says_why(n_ok):
+    """Draws that fail on a held-out test (a law's local iteration, non-finite forces) are dropped;
+    the band of the few that ran, or of the optimum alone, still spans the noise (95 %: about
+    +- 1.96 sigma), never zero width, and the fit's note says how many draws failed."""
+    spec = get("plasticity")
+    u = 0.05 * np.sin(np.linspace(0.0, 4.0 * np.pi, 400))
+    test = ShearTest("held", np.arange(u.size) * 0.05, u, np.zeros(u.size))
+    p_opt = np.array([1000.0, 10.0, 0.1, 0.0, 2.0])  # k_init, qd, alpha1, alpha2, mu
+    P = np.repeat(p_opt[None, :], 20, axis=0)
+    P[n_ok:, 0] = np.nan  # these draws give non-finite forces
+    sigma = 2.0
+    fit = IsolatorFit(spec=spec, p_opt=p_opt, P=P, sig=np.full(20, sigma), sigma=sigma, noise=sigma,
+                      free=tuple(q.name for q in spec.params))
+    pr = fit.predict(test)
+    width = pr.upper - pr.lower
+    assert np.all(np.isfinite(width))
+    assert 0.8 * 2 * 1.96 * sigma < np.median(width) < 1.2 * 2 * 1.96 * sigma
+    assert f"{20 - n_ok} of 20 posterior draws failed" in fit.note

@@ -56,6 +56,10 @@ __all__ = ["GapModel", "FitResult", "Prediction", "IsolatorModel", "IsolatorFit"
            "white_noise", "test_scales"]
 
 LEVEL = 0.95
+MIN_BAND_SAMPLES = 200
+"""Fewest noisy replicates behind a predictive band (surviving draws are repeated up to it)."""
+MIN_ESS = 5.0
+"""Below this effective sample size of the importance weights a fit says its draws are degenerate."""
 GLOBAL_EVALS = 300
 """CMA-ES evaluations per free parameter of the baseline's global search (then least squares)."""
 CHECKPOINT_FORMAT = 2
@@ -217,6 +221,11 @@ class IsolatorFit(FitResult):
     def name(self) -> str:  # type: ignore[override]
         return self.spec.name
 
+    def _add_note(self, text: str) -> None:
+        """Append ``text`` to :attr:`note` once (the diagnosis reports every fit's note)."""
+        if text not in self.note:
+            self.note = f"{self.note}; {text}" if self.note else text
+
     @property
     def params(self) -> dict[str, float]:  # type: ignore[override]
         return self.spec.as_dict(self.p_opt)
@@ -228,18 +237,34 @@ class IsolatorFit(FitResult):
         S = self.P.shape[0]
         F = np.empty((S, len(data)))
         ok = np.ones(S, dtype=bool)
+        status = np.zeros(S, dtype=np.int64)
         for s in range(S):
-            st, _ = _simulate(self.spec, self.P[s], data, F[s])
-            ok[s] = st == 0 and np.all(np.isfinite(F[s]))
+            status[s], _ = _simulate(self.spec, self.P[s], data, F[s])
+            ok[s] = status[s] == 0 and np.all(np.isfinite(F[s]))
+        n_ok = int(ok.sum())
         if not ok.any():
             st, f0 = _simulate(self.spec, self.p_opt, data)
             F, ok = f0[None, :], np.array([True])
             sig = np.array([self.sigma])
         else:
             sig = self.sig[: F.shape[0]]
+        if n_ok < S:
+            bad = sorted({int(c) for c in status[status != 0]})
+            self._add_note(
+                f"law '{self.spec.name}' on test '{getattr(data, 'name', '?')}': {S - n_ok} of {S} "
+                f"posterior draws failed (status {', '.join(map(str, bad)) or 'non-finite force'}); "
+                + (f"its band uses the {n_ok} that ran" if n_ok else
+                   "its band is the optimum's prediction with the noise alone"))
         F, sig = F[ok], sig[ok]
         rng = np.random.default_rng(self.seed + 1)
-        Y = F + rng.normal(size=F.shape) * sig[:, None]
+        # at least MIN_BAND_SAMPLES noisy replicates, so that few surviving draws (or the optimum
+        # alone) still give a band of the noise's width, never a zero-width one
+        reps = -(-MIN_BAND_SAMPLES // F.shape[0])
+        if reps > 1:
+            F_rep, sig_rep = np.repeat(F, reps, axis=0), np.repeat(sig, reps)
+        else:
+            F_rep, sig_rep = F, sig
+        Y = F_rep + rng.normal(size=F_rep.shape) * sig_rep[:, None]
         a = (1 - LEVEL) / 2
         lo, hi = np.quantile(Y, [a, 1 - a], axis=0)
         pred = Prediction(mean=F.mean(axis=0), lower=lo, upper=hi, draws=F, sigma=sig)
@@ -510,6 +535,11 @@ class IsolatorModel(GapModel):
         rss_s = np.array([float(q @ q) for q in (resid(x) for x in X)])
         sig = np.sqrt(rss_s / np.random.default_rng([seed, 999]).chisquare(n, size=S))
         self.last_ess = float(1.0 / np.sum(w**2))
+        if self.last_ess < MIN_ESS:
+            degenerate = (f"importance resampling of {where} degenerate (effective sample size "
+                          f"{self.last_ess:.1f} of {S} Laplace draws, {len(np.unique(pick))} distinct): "
+                          f"its bands and leave-one-out scores carry almost no parameter uncertainty")
+            note = f"{note}; {degenerate}" if note else degenerate
         return IsolatorFit(spec=spec, p_opt=p_opt, P=P, sig=sig, sigma=sigma, noise=white_noise(r),
                            free=free, seed=seed, note=note)
 
