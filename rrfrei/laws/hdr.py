@@ -45,6 +45,39 @@ from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
 DBL_EPSILON = 2.220446049250313e-16
 
 
+@njit(cache=True, inline="always")
+def track_damage(st, o, uh, uhc, dsp_c, dsm_c, ds_c, dm_c):
+    """Scragging and Mullins trackers of OpenSees' HDR (sticky trial values, written to
+    ``st[o:o + 4]`` = DS+, DS-, DS, DM [m]) from the trial and committed displacement magnitudes
+    ``uh``, ``uhc`` [m]; returns the trial (DS, DM).  Shared by the 1-D law and the plan law
+    (:mod:`rrfrei.laws.plan.hdr`), where the magnitudes are Euclidean norms."""
+    if uh > dsp_c:
+        st[o] = uh
+        st[o + 1] = dsm_c + (uh - dsp_c)
+        st[o + 2] = ds_c
+    if uh < dsm_c:
+        st[o] = dsp_c
+        st[o + 1] = uh
+        st[o + 2] = ds_c - (uh - dsm_c)
+    if uh < uhc:
+        st[o + 3] = dm_c + uhc - uh
+    return st[o + 2], st[o + 3]
+
+
+@njit(cache=True, inline="always")
+def damage_moduli(ds, dm, ds_c, c1, c2, c3, c4):
+    """Damage moduli of OpenSees' HDR: ks1 = exp(-c1 DS^3), ks2 = exp(-c2 DS^3) (and at the
+    committed DS), em = exp(-c4 DM^3), km = c3 + (1 - c3) em."""
+    ds3 = ds * ds * ds
+    dm3 = dm * dm * dm
+    ks1 = math.exp(-c1 * ds3)
+    ks2 = math.exp(-c2 * ds3)
+    ks2c = math.exp(-c2 * (ds_c * ds_c * ds_c))
+    em = math.exp(-c4 * dm3)
+    km = c3 + (1.0 - c3) * em
+    return ks1, ks2, ks2c, em, km
+
+
 @njit(cache=True, error_model="numpy")
 def step(p, sc, u, v, dt, st):
     """HDR shear force [kN], tangent [kN/m] and status (see the module docstring)."""
@@ -69,26 +102,8 @@ def step(p, sc, u, v, dt, st):
     uhc = abs(uc)
     dU = abs(u - uc)
     n = (u - uc) / dU if dU > DBL_EPSILON else 0.0
-    # trackers: sticky trial values
-    if uh > dsp_c:
-        st[2] = uh
-        st[3] = dsm_c + (uh - dsp_c)
-        st[4] = ds_c
-    if uh < dsm_c:
-        st[2] = dsp_c
-        st[3] = uh
-        st[4] = ds_c - (uh - dsm_c)
-    if uh < uhc:
-        st[5] = dm_c + uhc - uh
-    ds = st[4]
-    dm = st[5]
-    ds3 = ds * ds * ds
-    dm3 = dm * dm * dm
-    ks1 = math.exp(-c1 * ds3)
-    ks2 = math.exp(-c2 * ds3)
-    ks2c = math.exp(-c2 * (ds_c * ds_c * ds_c))
-    em = math.exp(-c4 * dm3)
-    km = c3 + (1.0 - c3) * em
+    ds, dm = track_damage(st, 2, uh, uhc, dsp_c, dsm_c, ds_c, dm_c)
+    ks1, ks2, ks2c, em, km = damage_moduli(ds, dm, ds_c, c1, c2, c3, c4)
     uh2 = uh * uh
     uh4 = uh2 * uh2
     r = b1 + ks2 * b2 * uh2

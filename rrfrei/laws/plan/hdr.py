@@ -64,7 +64,7 @@ import math
 
 from numba import njit
 
-from rrfrei.laws.hdr import DBL_EPSILON
+from rrfrei.laws.hdr import DBL_EPSILON, damage_moduli, track_damage
 from rrfrei.laws.plan.registry import PlanLawSpec, register
 
 
@@ -103,26 +103,8 @@ def step(p, sc, u, v, dt, st, f, k):
     if dU > DBL_EPSILON:
         n1 = e1 / dU
         n2 = e2 / dU
-    # trackers: sticky trial values
-    if uh > dsp_c:
-        st[4] = uh
-        st[5] = dsm_c + (uh - dsp_c)
-        st[6] = ds_c
-    if uh < dsm_c:
-        st[4] = dsp_c
-        st[5] = uh
-        st[6] = ds_c - (uh - dsm_c)
-    if uh < uhc:
-        st[7] = dm_c + uhc - uh
-    ds = st[6]
-    dm = st[7]
-    ds3 = ds * ds * ds
-    dm3 = dm * dm * dm
-    ks1 = math.exp(-c1 * ds3)
-    ks2 = math.exp(-c2 * ds3)
-    ks2c = math.exp(-c2 * (ds_c * ds_c * ds_c))
-    em = math.exp(-c4 * dm3)
-    km = c3 + (1.0 - c3) * em
+    ds, dm = track_damage(st, 4, uh, uhc, dsp_c, dsm_c, ds_c, dm_c)
+    ks1, ks2, ks2c, em, km = damage_moduli(ds, dm, ds_c, c1, c2, c3, c4)
     uh2 = uh * uh
     uh4 = uh2 * uh2
     r = b1 + ks2 * b2 * uh2
