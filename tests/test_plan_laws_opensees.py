@@ -32,6 +32,7 @@ from opensees_plan import (
     rrfrei_force_and_failure,
 )
 
+import rrfrei
 from rrfrei.laws import plan
 
 pytestmark = pytest.mark.opensees
@@ -172,3 +173,69 @@ def test_bouc_wen_local_newton_failure_matches_opensees(ops):
     f, fail = rrfrei_force_and_failure("bouc_wen", p, disp)
     _, _, fail_os = element_force_and_failure(ops, "bouc_wen", p, disp)
     assert fail == fail_os == 2
+
+
+def test_bouc_wen_rounding_borderline_failure_matches_opensees(ops):
+    """One step drives z from 0 to 2633 (eta 0.375): the first update() converges in 12
+    iterations, the second (OpenSees' analysis updates the element twice per step) oscillates
+    between two doubles 3 ulp apart with |dz| = 1.5e-12 > tol and fails at iter 25.  Ours calls
+    the step twice per step as OpenSees does, so it fails at the same sample (a single call, or
+    a Jacobian rounded differently, lands on another double and converges)."""
+    p = dict(k_init=10**4.5, qd=1.0, alpha1=0.0, alpha2=0.0, mu=1.0, eta=0.375, beta=0.34375,
+             gamma=1.5078125)
+    disp = np.array([[0.0, 0.0], [0.0, -0.00390625]])
+    _, fail = rrfrei_force_and_failure("bouc_wen", p, disp)
+    _, _, fail_os = element_force_and_failure(ops, "bouc_wen", p, disp)
+    assert fail == fail_os == 1
+
+
+def test_bouc_wen_forces_equal_opensees_bit_for_bit(ops):
+    """With OpenSees' arithmetic and its two update() calls per step, the forces of a long
+    figure-eight with growing amplitude (the benchmark's path, 1,500 steps) are openseespy's to
+    the last bit at every sample."""
+    p = dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.02, mu=2.0, eta=1.37, beta=0.6, gamma=0.4)
+    k = np.arange(1, 1501)
+    amp = 0.002 + 0.038 * k / k.size
+    disp = np.c_[amp * np.sin(2 * np.pi * k / 200), 0.8 * amp * np.sin(2 * np.pi * k / 150 + 0.7)]
+    f, fail = rrfrei_force_and_failure("bouc_wen", p, disp)
+    assert fail == -1
+    f_os = element_force_recorder(ops, "bouc_wen", p, disp)
+    assert np.array_equal(f, f_os), f"{np.sum(np.any(f != f_os, axis=1))} samples differ"
+
+
+def test_bouc_wen_exact_threshold_constants():
+    """|dz|^2 >= DZ2_TOL and |du|^2 > DU2_MIN decide exactly as OpenSees' sqrt(.) >= 1e-12 and
+    sqrt(.) > DBL_EPSILON: sqrt is correctly rounded and monotone, so checking both sides of
+    each threshold covers every double."""
+    import math
+
+    from rrfrei.laws.plan import bouc_wen as bw
+
+    assert math.sqrt(bw.DZ2_TOL) >= bw.TOL
+    assert not math.sqrt(math.nextafter(bw.DZ2_TOL, 0.0)) >= bw.TOL
+    assert not math.sqrt(bw.DU2_MIN) > bw.DBL_EPSILON
+    assert math.sqrt(math.nextafter(bw.DU2_MIN, 1.0)) > bw.DBL_EPSILON
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_bouc_wen_skipped_second_call_is_exact(seed):
+    """The history driver skips the second call of a step when the first flags it settled; the
+    step called twice at every sample (no skip) gives the same forces, tangents and state bit
+    for bit."""
+    rng = np.random.default_rng(seed)
+    p_dict = dict(k_init=float(10 ** rng.uniform(2, 4.5)), qd=float(10 ** rng.uniform(-1, 1)),
+                  alpha1=float(rng.uniform(0, 0.5)), alpha2=float(rng.uniform(0, 0.1)),
+                  mu=float(rng.choice([2.0, 2.7])), eta=float(rng.uniform(0.5, 4.0)),
+                  beta=float(rng.uniform(0.1, 1.0)), gamma=float(rng.uniform(-0.1, 0.9)))
+    disp = np.cumsum(rng.normal(0.0, 2e-3, (300, 2)) * rng.integers(0, 2, (300, 1)), axis=0)
+    f, kt = rrfrei.simulate_force("bouc_wen", p_dict, disp, return_tangent=True)
+    spec = plan.get("bouc_wen")
+    p = spec.law.pack(p_dict)
+    sc = spec.initial_state.copy()
+    st = sc.copy()
+    fi, ki, v = np.zeros(2), np.zeros((2, 2)), np.zeros(2)
+    for i in range(disp.shape[0]):
+        for _ in range(2):
+            assert spec.step(p, sc, disp[i].copy(), v, 1.0, st, fi, ki) == 0
+        sc[:] = st
+        assert np.array_equal(fi, f[i]) and np.array_equal(ki, kt[i]), f"sample {i}"

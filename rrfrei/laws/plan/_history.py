@@ -1,7 +1,18 @@
 """Template of a plan law's whole-history driver: one time loop, instantiated per law.
 
-Slot (bound per law by :func:`rrfrei.laws.plan.registry.driver`): ``plan_step``, the law's step
-kernel (contract in :mod:`rrfrei.laws.plan.registry`).
+Slots (bound per law by :func:`rrfrei.laws.plan.registry.driver`): ``plan_step``, the law's step
+kernel (contract in :mod:`rrfrei.laws.plan.registry`); the constants ``plan_static_calls``, the
+number of times (1 or 2) it is called per step, and ``plan_settled_index``, the state entry that
+says a second call would change nothing (``PlanLawSpec.static_calls`` and ``.settled_index``).
+
+Each sample is one step of OpenSees' static displacement-controlled analysis of the 3-D element
+(``tests/opensees_plan.py``), which updates the element twice: once in ``LoadControl::newStep``
+and once more after the first ``Newton`` correction (zero on the imposed shear DOFs, after which
+``NormDispIncr`` is met).  A law whose step starts from the current trial state (a local
+iteration from the trial z, as ``ElastomericBearingBoucWen3d::update``) can move in that second
+call by rounding, or fail in it; such a law sets ``static_calls = 2`` and is called twice here,
+with the same displacement, the trial state of the first call carried into the second (skipped
+when the first call flags its result as settled: the second would repeat it bit for bit).
 """
 
 import numpy as np
@@ -10,8 +21,10 @@ from numba import njit
 from rrfrei.laws._util import commit
 from rrfrei.laws.specialise import unbound
 
-SLOTS = ("plan_step",)
+SLOTS = ("plan_step", "plan_static_calls", "plan_settled_index")
 plan_step = unbound("plan_step")
+plan_static_calls = 1  # constants bound per law: Numba folds the branches below
+plan_settled_index = -1
 
 
 @njit(cache=True, error_model="numpy")
@@ -53,6 +66,9 @@ def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
             for a in range(2):
                 u[a] = disp[i, a] if j == substeps - 1 else u_prev[a] + du[a] * (j + 1)
             status = plan_step(p, sc, u, v, dt, st, f, k)
+            if plan_static_calls == 2 and status == 0:  # OpenSees' second update() of the step
+                if plan_settled_index < 0 or st[plan_settled_index] == 0.0:
+                    status = plan_step(p, sc, u, v, dt, st, f, k)
             if status != 0:
                 return status, i
             if not (np.isfinite(f[0]) and np.isfinite(f[1]) and np.isfinite(k[0, 0])

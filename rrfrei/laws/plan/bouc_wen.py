@@ -30,6 +30,41 @@ Jacobian", l.533-538), -2 if the loop ends with iter >= 25 (a solve converging e
 iteration also fails, as in OpenSees, l.547-552).  When |du| <= DBL_EPSILON (Euclidean norm)
 nothing is recomputed: force and tangent are those of the previous call (OpenSees l.500).
 
+Two calls per step.  OpenSees' static displacement-controlled analysis (``tests/opensees_plan.py``,
+the benchmark) calls ``update()`` twice per step: in ``LoadControl::newStep`` and after the first
+Newton correction (zero on the imposed shear DOFs).  The second call starts the local Newton
+again from the trial z the first one reached, so it can move z by rounding (a last iteration
+from there) or fail where the first converged: with eta = 0.375 and z driven from 0 to 2633 by
+one step (``test_bouc_wen_rounding_borderline_failure_matches_opensees``) the first call converges
+in 12 iterations and the second oscillates between two doubles 3 ulp apart with |dz| = 1.5e-12
+> tol until iter = 25.  The plan history driver therefore calls this step twice per step
+(``PlanLawSpec.static_calls = 2``, :mod:`rrfrei.laws.plan._history`); the plan building calls it
+once per Newton iteration, as OpenSees' transient analysis does.  The second call is skipped when
+it provably returns the same bits: the first call's last iteration left z bit for bit unchanged
+(state entry 10, ``settled_index``), so the second would repeat that iteration exactly (about 60%
+of the steps of the benchmark's figure-eight).  Likewise the four powers of the first iteration
+of a call (|z|^(eta-2), |z|^(eta-4), z_x^3, z_y^3, a pure function of z and eta) are taken from
+the state when the last iteration of the previous call started from that very z (entries
+[11:19], keyed bit for bit on z and eta): true after a settled call and after nearly every
+second call, so about one local iteration's four ``pow`` per step are saved, with the same bits.
+
+Arithmetic: OpenSees' own, operation for operation (four ``pow`` calls per local iteration:
+|z|^(eta-2), |z|^(eta-4), z_x^3, z_y^3; the same libm ``pow`` as openseespy's in-process
+library); the only rewritten tests are exact: |dz| >= tol as |dz|^2 >= 1e-24 and
+|du| > DBL_EPSILON as |du|^2 > 4.930380657631325e-32, the thresholds between which the correctly
+rounded square root changes side (no square root, same outcome for every double).  Evidence: the
+benchmark's 5,000-step figure-eight gives forces bit for bit equal to openseespy's at every sample;
+a sweep of 100,000 random cases (random parameters over the test strategies' ranges, 30% with
+rounded "shrunk" values; random, circular and figure-eight paths; 24,588 cases with an OpenSees
+local failure) gives 0 failure-sample mismatches and a largest force difference of 2.0e-16 of the
+peak.  With a single call per step (the earlier driver) the same sweep had 16 mismatches and
+2.1e-13, and 3,012 of the 5,000 benchmark samples differed in the last bits.  Cheaper Jacobians
+were measured and rejected: |z|^(eta-4) as |z|^(eta-2) / |z|^2 with z_i^3 as z_i^2 z_i (one pow
+per iteration, about 1.2x faster) gave 73 mismatches, z_i^3 as z_i^2 z_i alone 53 -- a Jacobian
+rounded differently moves where the iteration lands among the doubles around the root (1 step in
+5,000 on the benchmark), which decides rounding-borderline failures.  ``pow(z, 3.0)`` of glibc is
+not the correctly rounded cube (it differs in about 0.1% of arguments), so it cannot be replaced.
+
 Tangent (l.555-582): with t5 = |z_prev|^(eta-2) s of the last iteration's start point,
 du_x/du_y ratios (0 where du_x du_y = 0)::
 
@@ -48,13 +83,17 @@ within 1e-14 of the peak force, worst 6.2e-15 over 3000 random histories); this 
 the 3-D element, whose openseespy results it reproduces.  A further difference: the 1-D element
 skips the update only for du == 0 exactly, the 3-D one for |du| <= DBL_EPSILON.
 
-State (float64[10])::
+State (float64[19])::
 
     [0:2] u   trial (committed, in sc) shear displacement [m]
     [2:4] z   hysteretic variable [-]
     [4:6] q   shear forces of the last call [kN]
     [6:10] K - (k0 + k2) I, tangent of the last call (row-major) as an offset from the initial
            tangent A k0 + k2 [kN/m], so the virgin state (all zeros) is parameter-free
+    [10]  settled: 1.0 when a repeated call with the same u and committed state would return
+          the same bits (the last local iteration left z unchanged, or |du| <= DBL_EPSILON)
+    [11:19] powers cache: 1.0 when valid, z_x, z_y, eta, then |z|^(eta-2), |z|^(eta-4), z_x^3,
+          z_y^3 at that z (the start point of the last local iteration)
 """
 
 import math
@@ -68,6 +107,19 @@ A = 1.0
 MAX_ITER = 25
 TOL = 1e-12
 DBL_EPSILON = 2.220446049250313e-16
+DZ2_TOL = 1e-24
+"""|dz|^2 threshold: for every double s >= 0 (and NaN), ``s >= DZ2_TOL`` if and only if
+``sqrt(s) >= TOL`` (sqrt is correctly rounded and monotone; 1e-24 is the smallest such double,
+checked in tests/test_plan_laws_opensees.py): OpenSees' test without the square root."""
+DU2_MIN = 4.930380657631325e-32
+"""|du|^2 threshold: ``s > DU2_MIN`` if and only if ``sqrt(s) > DBL_EPSILON`` (the largest
+double whose square root is <= DBL_EPSILON, one ulp above DBL_EPSILON^2; same check)."""
+SETTLED = 10
+"""State entry: 1.0 when a repeated call with the same u and committed state returns the same
+trial state, force and tangent bit for bit (``PlanLawSpec.settled_index``)."""
+POW = 11
+"""State entries [11:19]: 1.0 (valid), z_x, z_y, eta and |z|^(eta-2), |z|^(eta-4), z_x^3, z_y^3
+computed there (the start point of the last local iteration of the last call)."""
 SFMIN = 2.2250738585072014e-308
 """LAPACK ``dlamch('S')``: below it ``dgetrf2`` divides by the pivot instead of scaling by its
 reciprocal."""
@@ -102,6 +154,12 @@ def _solve2(a00, a01, a10, a11, b0, b1):
     return b0, b1
 
 
+@njit(cache=True, inline="always")
+def _same(a, b):
+    """a and b are the same double (sign of zero included; NaN is never the same)."""
+    return a == b and (a != 0.0 or math.copysign(1.0, a) == math.copysign(1.0, b))
+
+
 @njit(cache=True, error_model="numpy")
 def step(p, sc, u, v, dt, st, f, k):
     """Plan Bouc-Wen step (module docstring): forces ``f`` [kN], tangent ``k`` [kN/m], trial
@@ -119,8 +177,9 @@ def step(p, sc, u, v, dt, st, f, k):
     du1 = u[1] - sc[1]
     st[0] = u[0]
     st[1] = u[1]
-    if not (math.sqrt(du0 * du0 + du1 * du1) > DBL_EPSILON):
-        # OpenSees keeps q and K of the previous update() call
+    if not (du0 * du0 + du1 * du1 > DU2_MIN):  # sqrt(du . du) > DBL_EPSILON, exactly
+        # OpenSees keeps q and K of the previous update() call (a repeated call does the same)
+        st[SETTLED] = 1.0
         kini = A * k0 + k2
         f[0] = st[4]
         f[1] = st[5]
@@ -138,23 +197,39 @@ def step(p, sc, u, v, dt, st, f, k):
     em1 = eta - 1.0
     em2 = eta - 2.0
     it = 0
+    settled = False
     tmp2 = 0.0
-    pw2 = 0.0
+    pw2 = pw4 = c0 = c1 = 0.0
+    s0 = s1 = 0.0
+    # the four powers at the start point are a pure function of (z, eta): reused from the state
+    # when the last iteration of the previous call started from this very z (module docstring)
+    hit = (st[POW] == 1.0 and _same(z0, st[POW + 1]) and _same(z1, st[POW + 2])
+           and eta == st[POW + 3])
     while True:
-        znrm = math.sqrt(z0 * z0 + z1 * z1)
-        if znrm == 0.0:
-            znrm = DBL_EPSILON
-        tmp1 = z0 * du0 + z1 * du1
-        tmp2 = gamma + beta * sgn(tmp1)
-        pw2 = znrm ** (eta - 2.0)
-        tmp3 = pw2 * tmp1 * tmp2
-        tmp4 = znrm ** (eta - 4.0) * tmp2
-        f0 = (z0 - zc0) - iuy * (A * du0 - z0 * tmp3)
-        f1 = (z1 - zc1) - iuy * (A * du1 - z1 * tmp3)
         a0 = z0 * z0
         a1 = z1 * z1
-        c0 = z0 ** 3.0
-        c1 = z1 ** 3.0
+        if hit:
+            pw2 = st[POW + 4]
+            pw4 = st[POW + 5]
+            c0 = st[POW + 6]
+            c1 = st[POW + 7]
+            hit = False
+        else:
+            znrm = math.sqrt(a0 + a1)  # Vector::Norm: sqrt(0 + z0^2 + z1^2), the same double
+            if znrm == 0.0:
+                znrm = DBL_EPSILON
+            pw2 = znrm ** em2  # four pow calls, as OpenSees (module docstring)
+            pw4 = znrm ** (eta - 4.0)
+            c0 = z0 ** 3.0
+            c1 = z1 ** 3.0
+        s0 = z0
+        s1 = z1
+        tmp1 = z0 * du0 + z1 * du1
+        tmp2 = gamma + beta * sgn(tmp1)
+        tmp3 = pw2 * tmp1 * tmp2
+        f0 = (z0 - zc0) - iuy * (A * du0 - z0 * tmp3)
+        f1 = (z1 - zc1) - iuy * (A * du1 - z1 * tmp3)
+        tmp4 = pw4 * tmp2
         t = tmp4 / uy
         d00 = 1.0 + t * (c1 * du1 + 2.0 * a1 * z0 * du0 + z1 * a0 * du1 * em1 + c0 * du0 * eta)
         d10 = z1 * tmp4 / uy * (a1 * du0 + z0 * z1 * du1 * em2 + a0 * du0 * em1)
@@ -163,16 +238,30 @@ def step(p, sc, u, v, dt, st, f, k):
         if abs(d00) <= DBL_EPSILON or abs(d11) <= DBL_EPSILON:
             st[2] = z0
             st[3] = z1
+            st[SETTLED] = 0.0
             return -1
         dz0, dz1 = _solve2(d00, d01, d10, d11, f0, f1)
-        z0 -= dz0
-        z1 -= dz1
+        n0 = z0 - dz0
+        n1 = z1 - dz1
+        settled = _same(n0, z0) and _same(n1, z1)  # this iteration left z bit for bit as it was
+        z0 = n0
+        z1 = n1
         it += 1
-        if not (math.sqrt(dz0 * dz0 + dz1 * dz1) >= TOL and it < MAX_ITER):
+        if not (dz0 * dz0 + dz1 * dz1 >= DZ2_TOL and it < MAX_ITER):  # |dz| >= tol, exactly
             break
     st[2] = z0
     st[3] = z1
+    st[SETTLED] = 1.0 if settled else 0.0
+    st[POW] = 1.0  # the powers at the last iteration's start point (z itself when settled)
+    st[POW + 1] = s0
+    st[POW + 2] = s1
+    st[POW + 3] = eta
+    st[POW + 4] = pw2
+    st[POW + 5] = pw4
+    st[POW + 6] = c0
+    st[POW + 7] = c1
     if it >= MAX_ITER:
+        st[SETTLED] = 0.0
         return -2
     tmp5 = pw2 * tmp2  # OpenSees recomputes pow(zNrm, eta-2) of the last iteration: same value
     r12 = du0 / du1
@@ -221,9 +310,11 @@ SPEC = register(
     PlanLawSpec(
         name="bouc_wen",
         step=step,
-        state_size=10,
+        state_size=19,
         description="OpenSees ElastomericBearingBoucWen3d shear: vector Bouc-Wen z, local "
                     "Newton on its two components, per-component hardening.",
         opensees_element="elastomericBearingBoucWen",
+        static_calls=2,
+        settled_index=SETTLED,
     )
 )

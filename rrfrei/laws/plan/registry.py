@@ -46,6 +46,15 @@ class PlanLawSpec:
     description : one line, with the OpenSees source it ports.
     opensees_element : the openseespy 3-D element command it matches ("" for none).
     initial_state : the virgin state (zeros when not given).
+    static_calls : 1, or 2 for a law whose step starts from the trial state on entry (a local
+        iteration from the trial z): the history driver then calls it twice per step, as
+        OpenSees' static displacement-controlled analysis updates the element twice
+        (:mod:`rrfrei.laws.plan._history`).
+    settled_index : with ``static_calls = 2``, the index of a state entry that the step sets
+        to 1.0 when a second call with the same displacement and committed state would
+        provably return the same trial state, force and tangent (e.g. its last local iteration
+        left z bit for bit unchanged), else 0.0; the history driver then skips that call.  -1:
+        always call twice.
     """
 
     name: str
@@ -54,8 +63,20 @@ class PlanLawSpec:
     description: str
     opensees_element: str = ""
     initial_state: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
+    static_calls: int = 1
+    settled_index: int = -1
 
     def __post_init__(self) -> None:
+        if self.static_calls not in (1, 2):
+            raise ValueError(
+                f"plan law {self.name!r}: static_calls must be 1 or 2, got {self.static_calls!r}"
+            )
+        if not (self.settled_index == -1
+                or self.static_calls == 2 and 0 <= self.settled_index < self.state_size):
+            raise ValueError(
+                f"plan law {self.name!r}: settled_index must be -1 or, with static_calls = 2, an "
+                f"index into the state (0 .. {self.state_size - 1}), got {self.settled_index!r}"
+            )
         if self.initial_state is None:
             object.__setattr__(self, "initial_state", np.zeros(self.state_size))
         init = np.asarray(self.initial_state, dtype=float)
@@ -137,6 +158,8 @@ def driver(spec: PlanLawSpec) -> Callable:
     hit = _DRIVERS.get(spec.name)
     if hit is not None and hit[0] is spec:
         return hit[1]
-    drive = instantiate(HISTORY, {"plan_step": spec.step}, f"plan_{spec.name}").drive
+    bindings = {"plan_step": spec.step, "plan_static_calls": spec.static_calls,
+                "plan_settled_index": spec.settled_index}
+    drive = instantiate(HISTORY, bindings, f"plan_{spec.name}").drive
     _DRIVERS[spec.name] = (spec, drive)
     return drive
