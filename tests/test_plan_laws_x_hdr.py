@@ -474,12 +474,18 @@ def test_a_centred_orbit_never_scrags_hdr_its_damage_follows_only_the_radius():
     assert w_plan > w_ind
 
 
-def test_a_subnormal_component_leaves_elastomeric_x_finite_with_the_force_of_a_zero_one():
-    """A component of 1e-310 m (OpenSees' r12 = d1/d2 overflows to an infinite tangent) is the
-    exact zero it is physically: the step succeeds, its force is the force with that component 0
-    to rounding, and its tangent is finite (hypothesis found this path: y = 1.1e-310 m)."""
-    p = {"fy": 1.0, "alpha": 0.05, "gr": 500.0, "d1": 0.0, "d2": 0.3, "tr": 0.005, "n": 20.0,
-         "tc": 0.0, "cd": 0.0}
+@pytest.mark.parametrize("fy, alpha, gr, d2, tr, n", [
+    (1.0, 0.05, 500.0, 0.3, 0.005, 20.0),
+    # r12 = 9e307 is finite but fy dz/du overflows (hypothesis found this one too)
+    (100.0, 0.5, 100.0, 0.1, 0.01, 1.0),
+])
+def test_a_subnormal_component_leaves_elastomeric_x_finite_with_the_force_of_a_zero_one(fy, alpha, gr, d2,
+                                                                                         tr, n):
+    """A component of 1e-310 m (OpenSees' r12 = d1/d2 overflows, or the tangent built from it, to
+    an infinite tangent) is the exact zero it is physically: the step succeeds, its force is the
+    force with that component 0 to rounding, and its tangent is finite (hypothesis found these
+    paths: y = 1.1e-310 m)."""
+    p = {"fy": fy, "alpha": alpha, "gr": gr, "d1": 0.0, "d2": d2, "tr": tr, "n": n, "tc": 0.0, "cd": 0.0}
     d = np.array([[0.01, 2.2e-315], [0.02, 1.1e-310], [0.015, 0.0]])
     f, k = rrfrei.simulate_force("elastomeric_x", p, d, return_tangent=True)
     f0 = rrfrei.simulate_force("elastomeric_x", p, np.c_[d[:, 0], np.zeros(3)])
