@@ -138,6 +138,20 @@ def test_the_advice_matches_why_the_chain_stopped(why, expected, never):
         assert n not in text, (n, text)
 
 
+def test_the_advice_suggests_the_decimated_path_only_for_a_dense_record_run_without_it():
+    base = {"stopped_by": "time_budget", "steps": 900, "max_steps": 20000, "time_budget": 300.0,
+            "tau": {"a": 200.0}, "rhat_max": 1.2, "ess_min": 40.0, "points": 33_028, "likelihood_stride": 17}
+    off = {"decimated": False, "decimable": True, "samples": 33_028}
+    on = {"decimated": True, "decimable": True, "samples": 7808}
+    assert "--half-cycle-points auto" in advice({**base, "path": off}, cli=True)
+    assert "half_cycle_points=" in advice({**base, "path": off})
+    assert "half-cycle" not in advice({**base, "path": on}, cli=True)
+    assert "half-cycle" not in advice({**base, "path": {**off, "decimable": False}}, cli=True)  # rate law
+    assert "half-cycle" not in advice({**base, "points": 2401, "path": off}, cli=True)  # not dense
+    capped = {**base, "stopped_by": "max_steps"}
+    assert "--half-cycle-points auto" in advice({**capped, "path": off}, cli=True)
+
+
 def _cli(capsys, *argv):
     try:
         rc = cli.main(list(argv))
@@ -150,7 +164,8 @@ def _cli(capsys, *argv):
 def test_the_cli_shows_the_cap_budget_and_likelihood_options_in_help(capsys):
     rc, out, _ = _cli(capsys, "calibrate", "--help")
     assert rc == 0
-    for opt in ("--max-steps", "--time-budget", "--likelihood-points", "--checkpoint", "--quiet", "--fix"):
+    for opt in ("--max-steps", "--time-budget", "--likelihood-points", "--checkpoint", "--quiet", "--fix",
+                "--half-cycle-points"):
         assert opt in out
     assert "20000" in out and "300" in out
 
@@ -159,6 +174,7 @@ def test_the_cli_shows_the_cap_budget_and_likelihood_options_in_help(capsys):
     ("--max-steps", "0"), ("--max-steps", "-3"), ("--max-steps", "many"),
     ("--time-budget", "0"), ("--time-budget", "-10"), ("--time-budget", "soon"),
     ("--likelihood-points", "1"), ("--likelihood-points", "x"), ("--fix", "alpha2"), ("--fix", "mu=big"),
+    ("--half-cycle-points", "1"), ("--half-cycle-points", "some"),
 ])
 def test_the_cli_rejects_bad_values_with_exit_2_naming_the_option(capsys, tmp_path, option, value):
     rc, _, err = _cli(capsys, "calibrate", "protocol1", "--law", "plasticity", "--out",

@@ -106,6 +106,7 @@ from hypothesis import strategies as st  # noqa: E402
 from rrfrei.calibration.reparam import (  # noqa: E402
     Coordinates,
     Hardening,
+    HardeningExponent,
     PostYieldStiffness,
     sampling_coordinates,
 )
@@ -137,8 +138,9 @@ def test_alpha2_is_sampled_as_a_hardening_force_only_when_the_data_show_one(test
     pb = setup_problem(test_data, "bouc_wen")
     theta = np.array([TRUTH[n] for n in pb.free] + [SIGMA])
     c = sampling_coordinates(pb, theta, alpha2_sd=0.03)
-    assert isinstance(c, PostYieldStiffness) and isinstance(c.inner, Hardening)
-    assert "hardening force" in c.name and "k2 = alpha1 k_init" in c.name
+    assert isinstance(c, PostYieldStiffness) and isinstance(c.inner, HardeningExponent)
+    assert isinstance(c.inner.inner, Hardening)
+    assert all(w in c.name for w in ("hardening force", "1/(mu - 1)", "k2 = alpha1 k_init"))
     flat = theta.copy()
     flat[pb.names.index("alpha2")] = 0.05
     assert type(sampling_coordinates(pb, flat, alpha2_sd=0.03).inner) is Coordinates
@@ -151,11 +153,11 @@ def test_alpha2_is_sampled_as_a_hardening_force_only_when_the_data_show_one(test
 
 @settings(max_examples=60, deadline=None)
 @given(k=st.floats(1.0, 1e6), a1=st.floats(0.0, 0.9999), a2=st.floats(-1.0, 1.0),
-       mu=st.floats(1.0, 10.0), d=st.floats(1e-3, 1.0))
+       mu=st.floats(1.01, 10.0), d=st.floats(1e-3, 1.0))
 def test_the_post_yield_stiffness_coordinates_map_back_exactly_with_the_stated_jacobian(k, a1, a2, mu, d):
-    """theta -> (k2 = alpha1 k_init on top of h = alpha2 k_init d^mu) -> theta is the identity to
-    rounding, and log|det dtheta/dphi| is the finite-difference Jacobian's."""
-    c = PostYieldStiffness(Hardening(d, 2, 0, 3, k_fixed=k, mu_fixed=mu), ik=0, ia1=1)
+    """theta -> (k2 = alpha1 k_init, s = 1/(mu - 1) on top of h = alpha2 k_init d^mu) -> theta is
+    the identity to rounding, and log|det dtheta/dphi| is the finite-difference Jacobian's."""
+    c = PostYieldStiffness(HardeningExponent(Hardening(d, 2, 0, 3, k_fixed=k, mu_fixed=mu), 3), ik=0, ia1=1)
     theta = np.array([[k, a1, a2, mu, 0.3]])
     phi = c.to_sampling(theta)
     np.testing.assert_allclose(c.to_law(phi), theta, rtol=1e-12, atol=1e-15)

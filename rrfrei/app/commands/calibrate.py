@@ -34,7 +34,9 @@ Writes DIR/posterior.nc, DIR/summary.csv, DIR/cycles.csv, DIR/run.json (why samp
 steps, tau, R-hat, ESS) and figures (pair plot, predictive loop with band, energy per cycle,
 cumulative energy, held-out predictions), and keeps the chain in DIR/chain.h5: a run stopped by
 --time-budget (exit 0, with a warning) continues where it stopped when the same command is run
-again.
+again.  Dense records (more than 5,000 samples): the likelihood uses a regular subsample
+(--likelihood-points) and the law runs along a decimated path (--half-cycle-points), whose force
+error at the optimum is checked against the whole record; both are stated in run.json.
 """
 
 DEFAULT_TIME_BUDGET = 300.0
