@@ -344,7 +344,7 @@ def test_the_force_along_the_decimated_path_converges_to_the_whole_records_as_n_
     assert pb.log_likelihood(theta[None, :])[0] == pytest.approx(expected, rel=1e-10)
 
 
-def test_calibrate_states_the_decimation_and_refines_a_too_coarse_path():
+def test_calibrate_states_the_decimation_and_refines_a_too_coarse_path(tmp_path):
     """Asked for 3 samples per half-cycle (6,001 samples, noise sd 0.2 kN, 200 likelihood
     samples), the force along the path is off by more than the tolerance at the optimum:
     ``calibrate`` doubles N until it is within it, and says so in the diagnostics."""
@@ -355,8 +355,11 @@ def test_calibrate_states_the_decimation_and_refines_a_too_coarse_path():
     fixed = {k: truth[k] for k in ("k_init", "alpha1", "alpha2", "mu", "eta", "gamma")}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        cal = calibrate(test, "bouc_wen", half_cycle_points=3, likelihood_points=200, fixed=fixed,
-                        walkers=16, steps=4, seed=0, progress=False)
+        kw = dict(half_cycle_points=3, likelihood_points=200, fixed=fixed, walkers=16, seed=0,
+                  progress=False, checkpoint=tmp_path / "chain.h5")
+        cal = calibrate(test, "bouc_wen", steps=4, **kw)
+        again = calibrate(test, "bouc_wen", steps=6, **kw)  # resumed: the refined path, not N = 3
+    assert again.diagnostics["resumed_steps"] == 4 and again.diagnostics["path"] == cal.diagnostics["path"]
     p = cal.diagnostics["path"]
     assert p["decimated"] and p["refinements"] >= 1 and p["half_cycle_points"] == 3 * 2 ** p["refinements"]
     assert p["samples"] < test.disp.size

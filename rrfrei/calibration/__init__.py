@@ -295,9 +295,9 @@ def calibrate(
     if problem.decimated and not isinstance(hcp, (int, np.integer)):
         hcp = HALF_CYCLE_POINTS
 
-    def refined(n_half: int) -> Problem:
+    def refined(n_half: int | str) -> Problem:
         return setup_problem(test, spec, priors=priors, noise=problem.noise, fixed=fixed,
-                             likelihood_points=likelihood_points, half_cycle_points=int(n_half))
+                             likelihood_points=likelihood_points, half_cycle_points=n_half)
 
     if spec.uses_velocity and not test.has_time:
         warnings.warn(
@@ -325,9 +325,11 @@ def calibrate(
     refinements = 0
     if stored is not None:
         theta0 = np.asarray(stored["theta"], dtype=float)
-        if problem.decimated and stored.get("half_cycle_points", hcp) != hcp:
-            hcp = int(stored["half_cycle_points"])
-            problem = refined(hcp)
+        refinements = int(stored.get("refinements", 0))
+        if problem.decimated and stored.get("half_cycle_points", hcp) != hcp:  # refined before
+            kept = stored["half_cycle_points"]  # None: refined up to every sample
+            problem = refined("all" if kept is None else int(kept))
+            hcp = hcp if kept is None else int(kept)
         perr = path_error(problem, theta0)
     else:
         try:
@@ -335,7 +337,7 @@ def calibrate(
             perr = path_error(problem, theta0)
             while problem.decimated and not perr["rms_sigma"] <= PATH_TOLERANCE:
                 hcp, refinements = 2 * int(hcp), refinements + 1
-                problem = refined(hcp)
+                problem = refined(int(hcp))
                 theta0, _ = polish_map(problem, theta0, budget=budget, progress=progress)
                 perr = path_error(problem, theta0)
         except BudgetExceeded:
@@ -345,7 +347,8 @@ def calibrate(
             Path(checkpoint).parent.mkdir(parents=True, exist_ok=True)
             save_optimum(checkpoint, {"law": spec.name, "names": list(problem.names),
                                       "theta": [float(x) for x in theta0], "fingerprint": fingerprint,
-                                      "half_cycle_points": None if not problem.decimated else int(hcp)})
+                                      "half_cycle_points": None if not problem.decimated else int(hcp),
+                                      "refinements": refinements})
     t_opt = time.perf_counter() - t0
     res = run_chain(problem, theta0, walkers=walkers, steps=steps, seed=seed, checkpoint=checkpoint,
                     progress=progress, max_steps=max_steps, budget=budget)
