@@ -336,8 +336,9 @@ class Problem:
         lp = np.zeros(theta.shape[0])
         inside = np.all((theta >= self.lower) & (theta <= self.upper), axis=1)
         lp[~inside] = -np.inf
-        for j, name in enumerate(self.names):
-            lp += self.priors[name].logpdf(theta[:, j])
+        with np.errstate(over="ignore", invalid="ignore"):  # rows outside the bounds are -inf anyway
+            for j, name in enumerate(self.names):
+                lp += self.priors[name].logpdf(theta[:, j])
         if self.spec.check is not None:
             P = self.full_params(theta)
             for w in np.flatnonzero(np.isfinite(lp)):

@@ -98,12 +98,14 @@ class Hardening(Coordinates):
 
     def to_sampling(self, theta: np.ndarray) -> np.ndarray:
         phi = np.array(np.atleast_2d(theta), dtype=float, copy=True)
-        phi[:, self.ia] = phi[:, self.ia] * np.exp(self._log_scale(phi))
+        with np.errstate(over="ignore", invalid="ignore"):  # a huge mu: outside the prior anyway
+            phi[:, self.ia] = phi[:, self.ia] * np.exp(self._log_scale(phi))
         return phi
 
     def to_law(self, phi: np.ndarray) -> np.ndarray:
         theta = np.array(np.atleast_2d(phi), dtype=float, copy=True)
-        theta[:, self.ia] = theta[:, self.ia] * np.exp(-self._log_scale(theta))
+        with np.errstate(over="ignore", invalid="ignore"):
+            theta[:, self.ia] = theta[:, self.ia] * np.exp(-self._log_scale(theta))
         return theta
 
     def log_jacobian(self, phi: np.ndarray) -> np.ndarray:
