@@ -53,8 +53,9 @@ from rrfrei.calibration import ConvergenceWarning, calibrate, setup_problem  # n
 MAX_STEPS = 20000  # the package default cap: report the real time to convergence
 SPC1 = HERE.parents[1] / "shared" / "data" / "hysteresis" / "clt_connection_tannert_spc1" / "SPC1.csv"
 CMD_HEADER = ("| test | wall [s] | stopped by | steps x walkers | max tau | R-hat max | ESS min "
-              "| likelihood points | NRMSE | posterior.nc [MB] | chain.h5 [MB] | converged |\n"
-              "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---|")
+              "| likelihood points | law path (samples; force error at the optimum) | NRMSE "
+              "| posterior.nc [MB] | chain.h5 [MB] | converged |\n"
+              "|---|---:|---|---|---:|---:|---:|---|---|---:|---:|---:|---|")
 CLI = [sys.executable, "-m", "rrfrei.app", "calibrate"]
 WALKERS = 32
 TOLERANCE = 1e-8  # relative difference of the two log-likelihoods
@@ -143,7 +144,7 @@ def main() -> None:
                 "--disp-col", "Lead Actuator Displacment:mm", "--force-col", "Lead Actuator Force:kN"]))
         else:
             cmd_rows.append(f"| SPC1 | missing: {SPC1.name} not found next to the repository |"
-                            + " |" * 11)
+                            + " |" * 12)
     # --- cold start ------------------------------------------------------------------------------
     cold = tm.cold_start(COLD.format(theta=list(theta[0])))
     multi_row = (f"| multi-core throughput: rrfrei on {t_multi.threads} threads | {rate:.0f} evaluations/s "
@@ -227,14 +228,17 @@ def command_row(label: str, csv: Path, extra: list[str], walls: list | None = No
         walls.append(wall)
     print(f"{label}: {wall:.1f} s, exit {run.returncode}\n{run.stderr[-1500:]}", flush=True)
     if run.returncode != 0:
-        return f"| {label} | {wall:.1f} | failed (exit {run.returncode}) |" + " |" * 9
+        return f"| {label} | {wall:.1f} | failed (exit {run.returncode}) |" + " |" * 10
     r = {**json.loads((out / "result.json").read_text()), **json.loads((out / "run.json").read_text())}
     mb = (out / "posterior.nc").stat().st_size / 1e6
     ck = out / "chain.h5"
     ck_mb = ck.stat().st_size / 1e6 if ck.exists() else float("nan")
     lik = f"{r['likelihood_points']} of {r['points']}"
+    p = r.get("path") or {}
+    path = (f"{p['samples']} (>= {p['half_cycle_points']} per half-cycle; {p['error_rms_kN']:.3g} kN "
+            f"RMS = {p['error_rms_sigma']:.3f} sigma)" if p.get("decimated") else "every sample")
     return (f"| {label} | {wall:.1f} | {r['stopped_by']} | {r['steps']} x {r.get('walkers', '')} "
-            f"| {r['tau_max']:.0f} | {r['rhat_max']:.3f} | {r['ess_min']:.0f} | {lik} "
+            f"| {r['tau_max']:.0f} | {r['rhat_max']:.3f} | {r['ess_min']:.0f} | {lik} | {path} "
             f"| {100 * r['nrmse']:.2f} % | {mb:.1f} | {ck_mb:.1f} | {r['converged']} |")
 
 

@@ -410,7 +410,10 @@ def test_a_killed_and_resumed_calibration_ends_with_as_many_samples_as_an_uninte
     steps = 600
     script = tmp_path / "run.py"
     script.write_text(SCRIPT)
-    env = {**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"}
+    # the child imports the same rrfrei as this process (the checkout under test, not an install)
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE",
+           "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))}
     ck = tmp_path / "chain.h5"
     proc = subprocess.Popen([sys.executable, str(script), str(ck), str(steps)], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)

@@ -103,7 +103,13 @@ def test_the_posterior_file_of_a_2401_sample_test_is_at_most_10_mb(converged, tm
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from rrfrei.calibration.reparam import Coordinates, Hardening, sampling_coordinates  # noqa: E402
+from rrfrei.calibration.reparam import (  # noqa: E402
+    Coordinates,
+    Hardening,
+    HardeningExponent,
+    PostYieldStiffness,
+    sampling_coordinates,
+)
 
 
 @settings(max_examples=60, deadline=None)
@@ -132,13 +138,37 @@ def test_alpha2_is_sampled_as_a_hardening_force_only_when_the_data_show_one(test
     pb = setup_problem(test_data, "bouc_wen")
     theta = np.array([TRUTH[n] for n in pb.free] + [SIGMA])
     c = sampling_coordinates(pb, theta, alpha2_sd=0.03)
-    assert isinstance(c, Hardening) and "hardening force" in c.name
+    assert isinstance(c, PostYieldStiffness) and isinstance(c.inner, HardeningExponent)
+    assert isinstance(c.inner.inner, Hardening)
+    assert all(w in c.name for w in ("hardening force", "1/(mu - 1)", "k2 = alpha1 k_init"))
     flat = theta.copy()
     flat[pb.names.index("alpha2")] = 0.05
-    assert type(sampling_coordinates(pb, flat, alpha2_sd=0.03)) is Coordinates
-    assert type(sampling_coordinates(pb, theta, alpha2_sd=None)) is Coordinates
+    assert type(sampling_coordinates(pb, flat, alpha2_sd=0.03).inner) is Coordinates
+    assert type(sampling_coordinates(pb, theta, alpha2_sd=None).inner) is Coordinates
     pb_fixed = setup_problem(test_data, "bouc_wen", fixed={"alpha2": 0.0, "mu": 2.0})
-    assert type(sampling_coordinates(pb_fixed, theta[[0, 1, 2, 5, 6, 7]], 0.03)) is Coordinates
+    assert type(sampling_coordinates(pb_fixed, theta[[0, 1, 2, 5, 6, 7]], 0.03).inner) is Coordinates
+    pb_k = setup_problem(test_data, "bouc_wen", fixed={"k_init": 1130.0, "alpha2": 0.0, "mu": 2.0})
+    assert type(sampling_coordinates(pb_k, theta[[1, 2, 5, 6, 7]], 0.03)) is Coordinates
+
+
+@settings(max_examples=60, deadline=None)
+@given(k=st.floats(1.0, 1e6), a1=st.floats(0.0, 0.9999), a2=st.floats(-1.0, 1.0),
+       mu=st.floats(1.01, 10.0), d=st.floats(1e-3, 1.0))
+def test_the_post_yield_stiffness_coordinates_map_back_exactly_with_the_stated_jacobian(k, a1, a2, mu, d):
+    """theta -> (k2 = alpha1 k_init, s = 1/(mu - 1) on top of h = alpha2 k_init d^mu) -> theta is
+    the identity to rounding, and log|det dtheta/dphi| is the finite-difference Jacobian's."""
+    c = PostYieldStiffness(HardeningExponent(Hardening(d, 2, 0, 3, k_fixed=k, mu_fixed=mu), 3), ik=0, ia1=1)
+    theta = np.array([[k, a1, a2, mu, 0.3]])
+    phi = c.to_sampling(theta)
+    np.testing.assert_allclose(c.to_law(phi), theta, rtol=1e-12, atol=1e-15)
+    assert phi[0, 1] == pytest.approx(a1 * k, rel=1e-12, abs=1e-300)
+    J = np.empty((5, 5))
+    for j in range(5):
+        step = 1e-6 * max(abs(phi[0, j]), 1e-3)
+        e = np.zeros((1, 5))
+        e[0, j] = step
+        J[:, j] = (c.to_law(phi + e)[0] - c.to_law(phi - e)[0]) / (2 * step)
+    assert c.log_jacobian(phi)[0] == pytest.approx(np.log(abs(np.linalg.det(J))), abs=1e-5)
 
 
 def test_the_chain_is_stored_in_law_parameters_with_the_law_posterior(test_data):

@@ -12,7 +12,11 @@ Identifiability (what the data of one cyclic test can and cannot fix):
 
 * ``plasticity`` / ``bouc_wen``: with ``alpha2`` near 0 the exponent ``mu`` of the nonlinear
   hardening term ``alpha2 k_init sgn(u)|u|^mu`` has no effect on the force, so its posterior is its
-  prior (not identifiable); it becomes identifiable only when the test shows stiffening.
+  prior (not identifiable); it becomes identifiable only when the test shows stiffening.  When it
+  shows a hardening term with ``mu`` near 1, ``sgn(u)|u|^mu`` is close to ``u`` and the posterior
+  has a thin tail toward mu -> 1 in which ``alpha1 k_init`` and ``alpha2 k_init`` grow and cancel
+  (the CLT record SPC1: k_init above 10,000 kN/m in 3 of 480 draws, 95 % interval 3,070-4,520
+  kN/m); the sampling coordinates of :mod:`.reparam` (``1 / (mu - 1)``) let the chain reach it.
   ``k_init`` is identifiable only when the elastic branch is sampled by several points; a sharp
   yield at a displacement smaller than the sampling step leaves only a lower bound.
 * ``bouc_wen`` (A = 1): the force is exactly invariant under (qd, beta, gamma) ->
@@ -38,8 +42,9 @@ import numpy as np
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.calibration.checks import predict
 from rrfrei.calibration.compare import compare, elpd_loco  # the function shadows the module name
-from rrfrei.calibration.likelihood import Problem
+from rrfrei.calibration.likelihood import HALF_CYCLE_POINTS, Problem
 from rrfrei.calibration.likelihood import likelihood_points as _lik_points
+from rrfrei.calibration.likelihood import path_points as _path_points
 from rrfrei.calibration.noise import NoiseModel, noise_model
 from rrfrei.calibration.priors import resolve_priors
 from rrfrei.calibration.results import (
@@ -54,6 +59,7 @@ from rrfrei.calibration.sampler import (
     ensemble_size,
     find_map,
     load_optimum,
+    polish_map,
     run_chain,
     save_optimum,
 )
@@ -63,7 +69,9 @@ from rrfrei.laws import LawSpec, get
 __all__ = [
     "Calibration",
     "ConvergenceWarning",
+    "PATH_TOLERANCE",
     "advice",
+    "path_error",
     "run_stats",
     "calibrate",
     "compare",
@@ -81,9 +89,14 @@ class ConvergenceWarning(UserWarning):
 
 def setup_problem(test: ShearTest, law: str | LawSpec, *, priors=None,
                   noise: str | NoiseModel = "iid", fixed: Mapping[str, float] | None = None,
-                  likelihood_points: int | str | None = "auto") -> Problem:
-    """The :class:`Problem` (free/fixed split, priors, likelihood samples) that :func:`calibrate`
-    samples; ``likelihood_points`` as in :func:`.likelihood.likelihood_points`.
+                  likelihood_points: int | str | None = "auto",
+                  half_cycle_points: int | str | None = "all") -> Problem:
+    """The :class:`Problem` (free/fixed split, priors, likelihood samples, the law's input path)
+    that :func:`calibrate` samples; ``likelihood_points`` as in
+    :func:`.likelihood.likelihood_points`, ``half_cycle_points`` as in
+    :func:`.likelihood.path_points` (default here ``"all"``: the law runs along every sample;
+    :func:`calibrate` defaults to ``"auto"``).  A law with rate-dependent terms on a test with a
+    time column always runs along every sample (decimation would change its velocities).
 
     ``law`` and ``noise`` may be names or the resolved :class:`~rrfrei.laws.LawSpec` and
     :class:`~.noise.NoiseModel` (used as they are: a caller that resolved them passes them down).
@@ -98,7 +111,38 @@ def setup_problem(test: ShearTest, law: str | LawSpec, *, priors=None,
     pri = resolve_priors(spec, free, np.asarray(test.force), np.asarray(test.disp), noise, priors)
     points = "auto" if likelihood_points is None else likelihood_points
     idx = _lik_points(int(np.asarray(test.disp).size), points)
-    return Problem(spec, test, free, all_fixed, noise, dict(pri), lik_idx=idx)
+    if spec.uses_velocity and test.has_time:
+        _path_points(np.asarray(test.disp), half_cycle_points)  # validates the option
+        path = None
+    else:
+        path = _path_points(np.asarray(test.disp), half_cycle_points, keep=idx)
+    return Problem(spec, test, free, all_fixed, noise, dict(pri), lik_idx=idx, path_idx=path)
+
+
+PATH_TOLERANCE = 0.1
+"""Largest RMS difference, in units of the noise sd sigma, between the model force along the
+decimated input path and along the whole record at the likelihood's samples at the optimum;
+above it :func:`calibrate` doubles ``half_cycle_points`` (and polishes the optimum again)."""
+
+
+def path_error(problem: Problem, theta: np.ndarray) -> dict:
+    """Model force along ``problem``'s (decimated) input path against the whole record, at the
+    likelihood's samples, for one parameter row ``theta``: ``{"rms_kN", "max_kN", "rms_sigma"}``
+    (RMS and largest |difference| [kN], the RMS over the noise sd sigma of ``theta``); zeros when
+    the law runs along every sample, nan when either run fails."""
+    theta = np.asarray(theta, dtype=float)
+    if not problem.decimated:
+        return {"rms_kN": 0.0, "max_kN": 0.0, "rms_sigma": 0.0}
+    P = problem.full_params(theta[None, :])
+    Fp, sp = problem.forces(P)
+    Ff, sf = problem.forces(P, problem.test)
+    if sp[0] != 0 or sf[0] != 0:
+        return {"rms_kN": math.nan, "max_kN": math.nan, "rms_sigma": math.nan}
+    d = problem.at_points(Fp)[0] - Ff[0, problem.lik_idx]
+    rms = float(np.sqrt(np.mean(d * d)))
+    sigma = float(problem.noise_params(theta[None, :])[0][0])
+    return {"rms_kN": rms, "max_kN": float(np.max(np.abs(d))),
+            "rms_sigma": rms / sigma if sigma > 0 else math.inf}
 
 
 def _fingerprint(problem: Problem, nw: int, seed: int) -> str:
@@ -107,7 +151,7 @@ def _fingerprint(problem: Problem, nw: int, seed: int) -> str:
     import hashlib
 
     h = hashlib.sha256()
-    for arr in (problem.test.disp, problem.test.force, problem.lik_idx):
+    for arr in (problem.test.disp, problem.test.force, problem.lik_idx, problem.path_idx):
         h.update(np.ascontiguousarray(arr).tobytes())
     h.update(repr((problem.spec.name, problem.names, problem.noise.name, nw, int(seed),
                    sorted(problem.fixed.items()),
@@ -121,6 +165,16 @@ def run_stats(diagnostics: Mapping) -> str:
     taus = [v for v in dict(d.get("tau", {})).values() if v == v]
     tau = f"tau ≈ {max(taus):.0f} steps" if taus else "tau not estimable"
     return f"{tau}, R-hat {d.get('rhat_max', float('nan')):.3f}, ESS {d.get('ess_min', float('nan')):.0f}"
+
+
+def _path_advice(d: Mapping, opt) -> str:
+    """The decimation hint of :func:`advice`: only for a dense record whose law ran along every
+    sample although it could have been decimated (``half_cycle_points="all"``)."""
+    path = d.get("path") or {}
+    if path.get("decimated", True) or d.get("points", 0) <= 5000 or not path.get("decimable", False):
+        return ""
+    return (f", or let the law run along a decimated path "
+            f"({opt('half_cycle_points=', '--half-cycle-points')} auto)")
 
 
 def advice(diagnostics: Mapping, *, cli: bool = False) -> str:
@@ -137,10 +191,11 @@ def advice(diagnostics: Mapping, *, cli: bool = False) -> str:
         return (f"stopped by the time budget of {d.get('time_budget', float('nan')):.0f} s after "
                 f"{steps} steps ({stats}); all {steps} steps are kept. Rerun with the same "
                 f"{opt('checkpoint=', '--checkpoint')} to continue the chain, or raise "
-                f"{opt('time_budget=', '--time-budget')}")
+                f"{opt('time_budget=', '--time-budget')}{_path_advice(d, opt)}")
     if why == "max_steps":
         extra = ("" if d.get("likelihood_stride", 1) > 1 or d.get("points", 0) <= 5000 else
                  f", or use fewer likelihood points ({opt('likelihood_points=', '--likelihood-points')})")
+        extra += _path_advice(d, opt)
         return (f"stopped at the step cap of {int(d.get('max_steps', steps))} steps ({stats}): raise "
                 f"{opt('max_steps=', '--max-steps')} (a rerun with the same "
                 f"{opt('checkpoint=', '--checkpoint')} continues the chain){extra}")
@@ -148,7 +203,10 @@ def advice(diagnostics: Mapping, *, cli: bool = False) -> str:
         return (f"the {steps} fixed steps were too few ({stats}): leave out "
                 f"{opt('steps=', '--steps')} to run to convergence (up to "
                 f"{opt('max_steps=', '--max-steps')}), or ask for more steps")
-    return f"{stats}: the chain met the step rule but not the final R-hat < 1.05 check; run longer"
+    return (f"{stats}: the chain met the step rule but not the final R-hat < 1.05 check of the "
+            f"thinned stored draws; run longer: ask for more steps than the {steps} sampled "
+            f"({opt('steps=', '--steps')} {2 * steps}; the same {opt('checkpoint=', '--checkpoint')} "
+            "continues the chain)")
 
 
 def calibrate(
@@ -167,6 +225,7 @@ def calibrate(
     time_budget: float | TimeBudget | None = None,
     likelihood_points: int | str | None = "auto",
     checkpoint_mismatch: str = "error",
+    half_cycle_points: int | str | None = "auto",
 ) -> Calibration:
     """Posterior of ``law``'s parameters given ``test``.
 
@@ -199,6 +258,15 @@ def calibrate(
         whole history (see :mod:`.likelihood`).  Reported in ``diagnostics``.
     checkpoint_mismatch : ``"error"`` (default): a checkpoint made for other data, law, priors,
         noise, likelihood points or walkers is a ValueError; ``"restart"``: it is overwritten.
+    half_cycle_points : decimation of the law's input path (:func:`.likelihood.path_points`):
+        ``"auto"`` (default): on a dense record (more than 5,000 samples) the law runs along every
+        k-th sample of each half-cycle, k chosen so that every half-cycle keeps >= 100 samples,
+        plus the reversals and the likelihood's samples; ``"all"``: along every sample; an integer
+        N: >= N samples per half-cycle.  At the optimum the model force along the decimated path
+        is compared with the whole record's at the likelihood's samples; while the RMS difference
+        exceeds :data:`PATH_TOLERANCE` sigma, N is doubled (the optimum polished again).  The
+        final N, the path's samples and the difference are in ``diagnostics`` (``"path"``).
+        Laws with rate-dependent terms on a test with a time column are never decimated.
 
     Returns
     -------
@@ -229,7 +297,15 @@ def calibrate(
         raise ValueError(f"checkpoint_mismatch = {checkpoint_mismatch!r}: expected 'error' or 'restart'")
     spec = get(law)  # the law and the noise model are resolved here, once, and passed down
     problem = setup_problem(test, spec, priors=priors, noise=noise_model(noise), fixed=fixed,
-                            likelihood_points=likelihood_points)
+                            likelihood_points=likelihood_points, half_cycle_points=half_cycle_points)
+    hcp = half_cycle_points
+    if problem.decimated and not isinstance(hcp, (int, np.integer)):
+        hcp = HALF_CYCLE_POINTS
+
+    def refined(n_half: int | str) -> Problem:
+        return setup_problem(test, spec, priors=priors, noise=problem.noise, fixed=fixed,
+                             likelihood_points=likelihood_points, half_cycle_points=n_half)
+
     if spec.uses_velocity and not test.has_time:
         warnings.warn(
             f"test {test.name!r} has no time column: law {spec.name!r} has rate-dependent terms, "
@@ -253,18 +329,33 @@ def calibrate(
                 f"{stored.get('names')}, or other data, priors, noise, walkers or likelihood points) "
                 f"than this one ({spec.name!r} {list(problem.names)}); use another path"
             )
+    refinements = 0
     if stored is not None:
         theta0 = np.asarray(stored["theta"], dtype=float)
+        refinements = int(stored.get("refinements", 0))
+        if problem.decimated and stored.get("half_cycle_points", hcp) != hcp:  # refined before
+            kept = stored["half_cycle_points"]  # None: refined up to every sample
+            problem = refined("all" if kept is None else int(kept))
+            hcp = hcp if kept is None else int(kept)
+        perr = path_error(problem, theta0)
     else:
         try:
             theta0, _ = find_map(problem, seed, budget=budget, progress=progress)
+            perr = path_error(problem, theta0)
+            while problem.decimated and not perr["rms_sigma"] <= PATH_TOLERANCE:
+                hcp, refinements = 2 * int(hcp), refinements + 1
+                problem = refined(int(hcp))
+                theta0, _ = polish_map(problem, theta0, budget=budget, progress=progress)
+                perr = path_error(problem, theta0)
         except BudgetExceeded:
             raise BudgetExceeded(budget.message(
                 "it ran out during the search for the optimum, nothing was sampled")) from None
         if checkpoint is not None:
             Path(checkpoint).parent.mkdir(parents=True, exist_ok=True)
             save_optimum(checkpoint, {"law": spec.name, "names": list(problem.names),
-                                      "theta": [float(x) for x in theta0], "fingerprint": fingerprint})
+                                      "theta": [float(x) for x in theta0], "fingerprint": fingerprint,
+                                      "half_cycle_points": None if not problem.decimated else int(hcp),
+                                      "refinements": refinements})
     t_opt = time.perf_counter() - t0
     res = run_chain(problem, theta0, walkers=walkers, steps=steps, seed=seed, checkpoint=checkpoint,
                     progress=progress, max_steps=max_steps, budget=budget)
@@ -295,6 +386,11 @@ def calibrate(
         "max_steps": int(max_steps), "time_budget": budget.seconds,
         "resumed_steps": int(res.resumed_steps), "points": problem.n_points,
         "sampling_coordinates": res.coordinates,
+        "path": {"decimated": bool(problem.decimated), "samples": problem.n_path,
+                 "decimable": not (spec.uses_velocity and test.has_time),
+                 "half_cycle_points": int(hcp) if problem.decimated else None,
+                 "refinements": refinements, "tolerance_sigma": PATH_TOLERANCE,
+                 **{f"error_{k}": v for k, v in perr.items()}},
         "likelihood_points": problem.n_like,
         "likelihood_stride": int(problem.lik_idx[1] - problem.lik_idx[0]) if problem.n_like > 1 else 1,
         "ess_bulk_chain": res.ess_bulk, "ess_tail_chain": res.ess_tail, "rhat_chain": res.rhat,

@@ -44,7 +44,7 @@ from rrfrei.calibration.likelihood import Problem
 from rrfrei.calibration.priors import cube_range
 from rrfrei.calibration.reparam import sampling_coordinates
 
-__all__ = ["find_map", "run_chain", "ensemble_size", "ChainResult", "CHECK", "MAX_STEPS"]
+__all__ = ["find_map", "polish_map", "run_chain", "ensemble_size", "ChainResult", "CHECK", "MAX_STEPS"]
 
 MAX_STEPS = 20_000
 
@@ -191,6 +191,15 @@ def find_map(problem: Problem, seed: int = 0, *, max_evals: int | None = None,
         bar.close()
     return _polish(problem, cube, np.asarray(best_theta, dtype=float), best_lp, budget=budget,
                    progress=progress)
+
+
+def polish_map(problem: Problem, theta: np.ndarray, *, budget: TimeBudget | None = None,
+               progress: bool = False) -> tuple[np.ndarray, float]:
+    """(theta, log posterior) of the least-squares polish (:func:`_polish`) started at ``theta``
+    (its noise parameters profiled again first), e.g. an optimum of a nearby problem."""
+    k = len(problem.free)
+    th, lp = problem.profile_log_prob(np.asarray(theta, dtype=float)[None, :k])
+    return _polish(problem, _Cube(problem), th[0], float(lp[0]), budget=budget, progress=progress)
 
 
 def _polish(problem: Problem, cube: _Cube, theta: np.ndarray, lp: float, *,

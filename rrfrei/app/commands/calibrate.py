@@ -9,9 +9,17 @@ import warnings
 from pathlib import Path
 
 from rrfrei.budget import BudgetExceeded, TimeBudget, seconds_arg
-from rrfrei.calibration import ConvergenceWarning, advice, calibrate, plots, predict, run_stats
+from rrfrei.calibration import (
+    PATH_TOLERANCE,
+    ConvergenceWarning,
+    advice,
+    calibrate,
+    plots,
+    predict,
+    run_stats,
+)
 from rrfrei.calibration.compare import _az
-from rrfrei.calibration.likelihood import DENSE_POINTS, LIKELIHOOD_POINTS
+from rrfrei.calibration.likelihood import DENSE_POINTS, HALF_CYCLE_POINTS, LIKELIHOOD_POINTS
 from rrfrei.calibration.sampler import MAX_STEPS
 from rrfrei.io import DISP_UNITS, FORCE_UNITS, bundled_tests, load_test, read_test
 from rrfrei.laws import get
@@ -26,7 +34,9 @@ Writes DIR/posterior.nc, DIR/summary.csv, DIR/cycles.csv, DIR/run.json (why samp
 steps, tau, R-hat, ESS) and figures (pair plot, predictive loop with band, energy per cycle,
 cumulative energy, held-out predictions), and keeps the chain in DIR/chain.h5: a run stopped by
 --time-budget (exit 0, with a warning) continues where it stopped when the same command is run
-again.
+again.  Dense records (more than 5,000 samples): the likelihood uses a regular subsample
+(--likelihood-points) and the law runs along a decimated path (--half-cycle-points), whose force
+error at the optimum is checked against the whole record; both are stated in run.json.
 """
 
 DEFAULT_TIME_BUDGET = 300.0
@@ -94,7 +104,8 @@ def add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--walkers", type=_min_int(2), default=None, metavar="N",
                    help="ensemble size (default max(32, 4 x parameters))")
     p.add_argument("--steps", type=_min_int(2), default=None, metavar="N",
-                   help="MCMC steps (default: until >= 50 autocorrelation times)")
+                   help="MCMC steps (default: until the convergence rule holds: bulk and tail ESS "
+                        ">= 400, R-hat < 1.04, >= 10 stable autocorrelation times)")
     p.add_argument("--priors", default=None, metavar="TOML",
                    help="prior overrides ([priors.NAME] kind, a, b)")
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
@@ -131,6 +142,14 @@ def register(sub) -> None:
                    help=f"samples the likelihood uses (the law always runs along the whole record): "
                         f"auto = all up to {DENSE_POINTS}, else every k-th sample, at most "
                         f"{LIKELIHOOD_POINTS} (default auto)")
+    p.add_argument("--half-cycle-points", type=_likelihood_points, default="auto", metavar="N|auto|all",
+                   help=f"decimation of the law's input path: auto = on a record of more than "
+                        f"{DENSE_POINTS} samples the law runs along every k-th sample of each "
+                        f"half-cycle, k such that each keeps >= {HALF_CYCLE_POINTS} samples (plus the "
+                        "reversals and the likelihood's samples), N doubled until the force along it "
+                        f"is within {PATH_TOLERANCE:g} sigma (RMS) of the whole record's at the "
+                        "optimum; all = every sample (no decimation); N = >= N samples per "
+                        "half-cycle. Stated in run.json (path). Default auto")
     p.add_argument("--fix", type=_fix, action="append", default=[], metavar="NAME=VALUE",
                    help="hold a law parameter fixed (repeatable), e.g. --fix alpha2=0 --fix mu=2 "
                         "to drop bouc_wen's hardening term when the test shows none")
@@ -206,6 +225,7 @@ def run(args: argparse.Namespace) -> int:
                             progress=not (args.no_progress or args.quiet or args.json),
                             max_steps=args.max_steps, time_budget=budget,
                             likelihood_points=args.likelihood_points, fixed=dict(args.fix) or None,
+                            half_cycle_points=args.half_cycle_points,
                             checkpoint_mismatch="restart" if default_ck else "error")
         except BudgetExceeded as exc:
             print(f"rrfrei {exc}", file=sys.stderr)  # "rrfrei calibrate: time budget of ..."
@@ -262,6 +282,7 @@ def run(args: argparse.Namespace) -> int:
         "ess_min": float(d["ess_min"]), "likelihood_points": int(d["likelihood_points"]),
         "points": int(d["points"]), "stored_draws": int(d["stored_draws"]),
         "sampling_coordinates": d.get("sampling_coordinates", "law parameters"),
+        "path": d.get("path"),
         "checkpoint": None if checkpoint is None else str(checkpoint),
     }
     (out / "run.json").write_text(json.dumps(run_info, indent=2))
@@ -332,6 +353,11 @@ def run_line(d: dict) -> str:
     lik = (f"likelihood on {d['likelihood_points']} of {d['points']} samples (every "
            f"{d['likelihood_stride']}th)" if d["likelihood_points"] < d["points"]
            else f"likelihood on all {d['points']} samples")
+    path = d.get("path") or {}
+    law_path = (f"; law run along {path['samples']} of {d['points']} samples (>= "
+                f"{path['half_cycle_points']} per half-cycle; force within {path['error_rms_kN']:.3g} kN "
+                f"RMS = {path['error_rms_sigma']:.3g} sigma of the whole record's at the optimum; "
+                "--half-cycle-points all: no decimation)" if path.get("decimated") else "")
     return (f"stopped: {why} after {d['steps']} steps x {d['walkers']} walkers (--max-steps "
             f"{d['max_steps']}, --time-budget {budget}, {d['seconds']:.0f} s; {run_stats(d)}); "
-            f"{lik}; {d['stored_draws']} draws stored")
+            f"{lik}{law_path}; {d['stored_draws']} draws stored")
