@@ -39,7 +39,7 @@ def _before(u: np.ndarray) -> np.ndarray:
 def test_the_three_effects_are_catalogue_candidates_after_the_six_earlier_ones():
     for name, order in (("stiffening", 7), ("pinching", 8), ("scragging", 9)):
         assert EFFECTS[name].hints.order == order
-    assert get("plasticity+stiffening").param_names[-2:] == ("stiff_k", "stiff_onset")
+    assert get("plasticity+stiffening").param_names[-3:] == ("stiff_k", "stiff_onset", "stiff_exp")
     assert get("plasticity+pinching").param_names[-3:] == ("pinch", "pinch_width", "pinch_angle")
     assert get("plasticity+scragging").param_names[-2:] == ("scrag", "scrag_disp")
     assert get("plasticity+stiffening").param("stiff_k").lower == 0.0  # stiffening only
