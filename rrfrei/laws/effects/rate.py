@@ -18,7 +18,12 @@ base isolation II: modeling", J. Struct. Eng. 116(2)), and of rubber whose rate 
 ``lam = 0`` the kernel evaluates the power law itself (bit for bit the two-parameter kernel).
 Neutral: ``c = 0``.  No state.
 
-The diagnosis fits ``a`` and ``lam`` too (optional parameters named by its ``scales`` hint).
+The diagnosis fits ``c`` alone (linear viscous, ``a = 1``, ``lam = 0``): refitted to the
+validation's saturating generator form (``rate/tanh_friction``, noise-free, largest size) the
+kernel with ``a`` free in ``[0.2, 1]`` missed it by 1.2 % of the peak force, with the Cross
+saturation free (``lam <= 1 / v_peak``) by 1.0-1.7 %, under the 2 % noise of the table, against
+3.2 % for the linear form: fitting either shape would make that form one of the kernel's own
+(``tests/test_gap_validate.py``, docs/gap/validation.md).  Both stay for calibration.
 """
 
 import numpy as np
@@ -63,12 +68,8 @@ def _screen(ctx) -> float:
 
 HINTS = DiagnosisHints(
     _screen,
-    lambda s: [{"rate_c": 0.05 * s.force / s.vel, "rate_exp": 1.0, "rate_sat": 0.0},
-               {"rate_c": 0.2 * s.force / s.vel, "rate_exp": 1.0, "rate_sat": 0.0},
-               {"rate_c": 0.4 * s.force / s.vel, "rate_exp": 1.0, "rate_sat": 2.0 / s.vel}],
-    lambda s: {"rate_c": s.force / s.vel, "rate_exp": 0.3, "rate_sat": 1.0 / s.vel},
-    lambda s: {"rate_c": (0.0, 50 * s.force / s.vel), "rate_exp": (0.2, 1.5),
-               "rate_sat": (0.0, 20.0 / s.vel)},
+    lambda s: [{"rate_c": 0.05 * s.force / s.vel}, {"rate_c": 0.2 * s.force / s.vel}],
+    lambda s: {"rate_c": s.force / s.vel}, lambda s: {"rate_c": (0.0, 20 * s.force / s.vel)},
     needs_time=True, order=4)
 
 
