@@ -39,8 +39,9 @@ def _before(u: np.ndarray) -> np.ndarray:
 def test_the_three_effects_are_catalogue_candidates_after_the_six_earlier_ones():
     for name, order in (("stiffening", 7), ("pinching", 8), ("scragging", 9)):
         assert EFFECTS[name].hints.order == order
-    assert get("plasticity+stiffening").param_names[-2:] == ("stiff_k", "stiff_onset")
-    assert get("plasticity+pinching").param_names[-3:] == ("pinch", "pinch_width", "pinch_angle")
+    assert get("plasticity+stiffening").param_names[-3:] == ("stiff_k", "stiff_onset", "stiff_exp")
+    assert get("plasticity+pinching").param_names[-5:] == ("pinch", "pinch_width", "pinch_angle", "slack_gap",
+                                                           "slack_force")
     assert get("plasticity+scragging").param_names[-2:] == ("scrag", "scrag_disp")
     assert get("plasticity+stiffening").param("stiff_k").lower == 0.0  # stiffening only
 
@@ -336,6 +337,9 @@ def test_pinching_is_its_closed_form_with_a_consistent_tangent_on_random_histori
         fm, _, _ = spec.step(pk, sc, u[-1] - h, 0.0, 1.0, stt.copy())
         return k, (fp - fm) / (2 * h)
 
+    # the band is normalised by the committed peaks: below a micrometre of history a central
+    # difference of 1e-8 m spans the whole band and is no derivative (u = 1e-10 m failed so)
+    assume(np.abs(u[:-1]).max() > 1e-6)
     kb, db = derivative(get(base), get(base).pack(vals))
     assume(abs(kb - db) <= 1e-6 * (1 + abs(kb)))  # not at a kink, not an algorithmic tangent
     k, d = derivative(get(f"{base}+pinching"), get(f"{base}+pinching").pack({**vals, **prm}))

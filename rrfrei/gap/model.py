@@ -63,6 +63,8 @@ MIN_ESS = 5.0
 GLOBAL_EVALS = 300
 """CMA-ES evaluations per free parameter of the baseline's global search (then least squares)."""
 CHECKPOINT_FORMAT = 2
+_UNIT_SCALES = Scales(force=1.0, disp=1.0, vel=1.0, energy=1.0)
+"""Scales at which an effect's ``scales`` hint is read for its parameter names only."""
 """Version of the checkpoint files (part of their key: a change invalidates old ones)."""
 
 
@@ -319,7 +321,13 @@ class IsolatorModel(GapModel):
 
     # --- fitting ---------------------------------------------------------------------------
     def _free(self, data: ShearTest) -> tuple[tuple[str, ...], dict[str, float]]:
-        return self.spec.resolve_fixed(data.geometry, self.fixed, source=f"test {data.name!r}")
+        """Fitted and fixed parameters: an effect's optional shape parameter (one with a default,
+        so that a user may leave it out) is fitted when the effect's ``scales`` hint names it."""
+        sample = {k for eff in self.spec.effects
+                  for k in catalogue()[eff].scales(_UNIT_SCALES)
+                  if self.spec.param(k).optional}
+        return self.spec.resolve_fixed(data.geometry, self.fixed, sample=frozenset(sample),
+                                       source=f"test {data.name!r}")
 
     def _base_start(self, data: ShearTest, free, fixed, seed: int,
                     budget: TimeBudget | None = None) -> list[dict[str, float]]:

@@ -35,7 +35,13 @@ Kernels of an effect module
   scaling so far and its derivative [1/m], ``fa, ka`` the additive force [kN] and tangent [kN/m]
   so far; it writes its trial state into ``st``;
 * a series effect: ``capacity(p, po) -> F_s`` [kN], the slider's capacity; its one state
-  variable (at ``so``) is the slider displacement u_s [m].
+  variable (at ``so``) is the slider displacement u_s [m];
+* optionally, beside an inner effect's ``apply``, a series elastic *slack* element:
+  ``compliance(p, pc, F) -> (x_s, dx_s/dF)``, the element's deformation [m] as an increasing,
+  bounded function of the force it carries (``|x_s| < p[pc]``, its travel; travel 0: no
+  element, the law bit for bit without it), with ``pc = po + compliance_param``; its state is
+  the effect's last state variable (the element's deformation).  The whole law (inner law and
+  slider) is in series with it (:func:`rrfrei.laws.effects._augment._slack`).
 """
 
 from __future__ import annotations
@@ -102,6 +108,8 @@ class EffectSpec:
     apply: Callable | None = field(default=None, compare=False, repr=False)
     capacity: Callable | None = field(default=None, compare=False, repr=False)
     hints: DiagnosisHints | None = field(default=None, compare=False, repr=False)
+    compliance: Callable | None = field(default=None, compare=False, repr=False)
+    compliance_param: int = 0
 
     def __post_init__(self) -> None:
         if (self.apply is None) == (self.capacity is None):
@@ -113,6 +121,14 @@ class EffectSpec:
             raise ValueError(
                 f"effect {self.name!r}: a series slider has state_size 1 (its displacement), "
                 f"got {self.state_size}"
+            )
+        if self.compliance is not None and (self.apply is None or self.state_size < 1
+                                            or not 0 <= self.compliance_param < len(self.params)):
+            raise ValueError(
+                f"effect {self.name!r}: a slack compliance belongs to an inner effect with at "
+                "least one state variable (its last: the element's deformation) and a travel "
+                f"parameter among its {len(self.params)}, got compliance_param "
+                f"{self.compliance_param}"
             )
         if len(self.neutral) != len(self.params):
             raise ValueError(
@@ -162,6 +178,11 @@ def compose(base: LawSpec, effect_names: list[str]) -> LawSpec:
         params.extend(eff.params)
         state += eff.state_size
         init.append(np.zeros(eff.state_size))
+    slack = [(e, po, so) for e, po, so in inner if e.compliance is not None]
+    if len(slack) > 1:
+        raise ValueError(
+            f"at most one slack element can be combined, got {', '.join(e.name for e, _, _ in slack)}"
+        )
     if len(series) > 1:
         raise ValueError(
             f"at most one series effect can be combined, got {', '.join(e.name for e, _, _ in series)}"
@@ -179,6 +200,11 @@ def compose(base: LawSpec, effect_names: list[str]) -> LawSpec:
     binds["series_capacity"] = eff.capacity if eff is not None else _neutral.no_capacity
     binds["P_SERIES"] = po
     binds["S_SERIES"] = so
+    eff, po, so = slack[0] if slack else (None, 0, 0)
+    binds["HAS_SLACK"] = eff is not None
+    binds["slack_compliance"] = eff.compliance if eff is not None else _neutral.no_compliance
+    binds["P_SLACK"] = po + eff.compliance_param if eff is not None else 0
+    binds["S_SLACK"] = so + eff.state_size - 1 if eff is not None else 0
     kernels = specialise.instantiate(TEMPLATE, binds, name)
 
     base_check = base.check

@@ -7,7 +7,11 @@ Slots, bound per augmented law by :func:`rrfrei.laws.effects.compose`:
 * ``effect_k``, ``P_k``, ``S_k`` (k = 1..4): the ``apply`` kernel of the k-th inner effect in the
   order named, with the offsets of its parameters and state (unused positions bound to
   :func:`rrfrei.laws.effects._neutral.no_effect`);
-* ``HAS_SERIES``, ``series_capacity``, ``P_SERIES``, ``S_SERIES``: the series slider, if any.
+* ``HAS_SERIES``, ``series_capacity``, ``P_SERIES``, ``S_SERIES``: the series slider, if any;
+* ``HAS_SLACK``, ``slack_compliance``, ``P_SLACK``, ``S_SLACK``: an inner effect's series
+  elastic slack element, if any (:func:`_slack`): its compliance kernel, the offset of its
+  travel parameter (0: rigid, the element is absent) and of its state (the element's
+  deformation, the warm start of its solve).
 
 The offsets are constants of the instance, so the compiled step is as direct as a hand-written
 one: no effect ids, no loop over a code array.
@@ -25,6 +29,7 @@ SLOTS = (
     "effect_3", "P_3", "S_3",
     "effect_4", "P_4", "S_4",
     "HAS_SERIES", "series_capacity", "P_SERIES", "S_SERIES",
+    "HAS_SLACK", "slack_compliance", "P_SLACK", "S_SLACK",
 )
 base_step = unbound("base_step")
 effect_1 = unbound("effect_1")
@@ -32,8 +37,10 @@ effect_2 = unbound("effect_2")
 effect_3 = unbound("effect_3")
 effect_4 = unbound("effect_4")
 series_capacity = unbound("series_capacity")
-NB = NS = P_1 = S_1 = P_2 = S_2 = P_3 = S_3 = P_4 = S_4 = P_SERIES = S_SERIES = 0
+slack_compliance = unbound("slack_compliance")
+NB = NS = P_1 = S_1 = P_2 = S_2 = P_3 = S_3 = P_4 = S_4 = P_SERIES = S_SERIES = P_SLACK = S_SLACK = 0
 HAS_SERIES = False
+HAS_SLACK = False
 
 
 @njit(cache=True)
@@ -136,9 +143,66 @@ def _slide(p, sc, u, v, dt, st):
 
 
 @njit(cache=True)
-def step(p, sc, u, v, dt, st):
-    """Step of the augmented law: (force [kN], tangent [kN/m], status); contract of the
-    registry."""
+def _core(p, sc, u, v, dt, st):
+    """The law without the slack element: the inner law, in series with the slider if any."""
     if HAS_SERIES:
         return _slide(p, sc, u, v, dt, st)
     return inner(p, sc, u, v, dt, st)
+
+
+@njit(cache=True)
+def _core_fresh(p, sc, y, v, dt, st):
+    """:func:`_core` at ``y`` from the committed state (no trial carried from the last one)."""
+    st[:] = sc
+    return _core(p, sc, y, v, dt, st)
+
+
+@njit(cache=True)
+def _slack(p, sc, u, v, dt, st):
+    """:func:`_core` in series with an elastic slack element whose deformation is a function of
+    the force it carries, ``x_s = X(F)`` (``slack_compliance(p, P_SLACK, F) -> (X, dX/dF)``,
+    increasing, ``|X| < a`` the travel ``p[P_SLACK]``).  The element's deformation solves
+    ``phi(x) = x - X(F_c(u - x)) = 0``, increasing in ``x`` with slope ``1 + X' k_c >= 1`` when
+    the law's tangent ``k_c >= 0``, and bracketed by ``[-a, a]``: Newton from the committed
+    deformation, a bisection step whenever Newton leaves the bracket.  Tangent
+    ``k_c / (1 + k_c X')``.  The law sees the total velocity ``v``."""
+    a = p[P_SLACK]
+    if a == 0.0:
+        return _core(p, sc, u, v, dt, st)
+    lo = -a
+    hi = a
+    x = min(max(sc[S_SLACK], lo), hi)
+    tol = 1e-13 * a
+    f = 0.0
+    k = 0.0
+    dx = 0.0
+    for _ in range(100):
+        f, k, status = _core_fresh(p, sc, u - x, v, dt, st)
+        if status != 0:
+            return f, k, status
+        xs, dx = slack_compliance(p, P_SLACK, f)
+        ph = x - xs
+        if ph > 0.0:
+            hi = x
+        else:
+            lo = x
+        if abs(ph) <= tol or hi - lo <= tol:
+            break
+        d = 1.0 + dx * k
+        xn = x - ph / d if d > 0.0 else 0.5 * (lo + hi)
+        if not (lo < xn < hi):
+            xn = 0.5 * (lo + hi)
+        x = xn
+    else:
+        return f, k, -2
+    st[S_SLACK] = x
+    return f, k / (1.0 + k * dx), 0
+
+
+@njit(cache=True)
+def step(p, sc, u, v, dt, st):
+    """Step of the augmented law: (force [kN], tangent [kN/m], status); contract of the
+    registry."""
+    if HAS_SLACK:
+        return _slack(p, sc, u, v, dt, st)
+    return _core(p, sc, u, v, dt, st)

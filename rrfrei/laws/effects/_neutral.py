@@ -13,3 +13,9 @@ def no_effect(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
 def no_capacity(p, po):
     """The series position of a law without a series effect (never called)."""
     return 0.0
+
+
+@njit(cache=True, inline="always")
+def no_compliance(p, po, f):
+    """The slack position of a law without a slack element (never called)."""
+    return 0.0, 0.0

@@ -35,7 +35,25 @@ softening below the previous peak that reaches out to ``u_max`` is Mullins' (:mo
 at ``phi = pi/2`` both are functions of ``|u| / u_max`` alone and the band's width is what tells
 them apart (docs/gap/validation.md, "Why the misses").
 
-State (2): ``[F_max [kN], u_max [m]]``.
+Slack in series (slip-lock)
+--------------------------
+The band above squeezes the force at the same displacement; the slack of a joint or a gap that
+opens and closes also *stretches* the loop: after every zero crossing the base law lags behind by
+the slack's travel.  Baber & Noori's pinching comes from exactly such a slip-lock element in
+series with the hysteretic one, whose compliance is a Gaussian of the force it carries (Baber &
+Noori 1986, eqs. for the slip-lock element; Foliente 1995, eq. 9, ``h(z)``).  Its deformation is
+then an error function of the force, soft near zero force and locked (rigid) at its travel ``a``
+beyond a few force widths ``sigma``::
+
+    x_s = a erf(F / sigma),        dx_s/dF = 2 a / (sqrt(pi) sigma) exp(-(F / sigma)^2)
+
+and the whole law (base, the other effects, a slider) acts on ``u - x_s`` (a series solve,
+:func:`rrfrei.laws.effects._augment._slack`); the slack centre is zero force, so the element is
+elastic and adds no loop area of its own.  ``slack_gap = a = 0`` (the default): no element, the
+band kernel bit for bit.  The diagnosis fits ``a <= 0.5`` of the test's peak displacement and
+``0.005 <= sigma / F_peak <= 0.5`` (its box) besides the band.
+
+State (3): ``[F_max [kN], u_max [m], x_s [m]]``.
 """
 
 import math
@@ -72,6 +90,16 @@ def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
     return g, dg, fa, ka
 
 
+@njit(cache=True, inline="always")
+def compliance(p, pc, f):
+    """Slack element's deformation a erf(F / sigma) and its derivative in F (``p[pc]`` = a,
+    ``p[pc + 1]`` = sigma; contract in :mod:`rrfrei.laws.effects`)."""
+    a = p[pc]
+    sg = p[pc + 1]
+    x = f / sg
+    return a * math.erf(x), 2.0 * a / (math.sqrt(math.pi) * sg) * math.exp(-x * x)
+
+
 def _screen(ctx) -> float:
     """r sgn(F) against a band of small predicted |F| (below a fifth of its peak) on branches
     below the previous peak |u| (the force there is smaller: a negative association; positive
@@ -86,10 +114,16 @@ def _screen(ctx) -> float:
 
 HINTS = DiagnosisHints(
     _screen,
-    lambda s: [{"pinch": 0.6, "pinch_width": 0.4, "pinch_angle": 0.5},
-               {"pinch": 0.5, "pinch_width": 0.4, "pinch_angle": 1.4}],
-    lambda s: {"pinch": 0.3, "pinch_width": 0.3, "pinch_angle": 0.5},
-    lambda s: {"pinch_width": (0.05, 0.5)}, order=8)
+    lambda s: [{"pinch": 0.6, "pinch_width": 0.4, "pinch_angle": 0.5, "slack_gap": 0.0,
+                "slack_force": 0.1 * s.force},
+               {"pinch": 0.5, "pinch_width": 0.4, "pinch_angle": 1.4, "slack_gap": 0.0,
+                "slack_force": 0.1 * s.force},
+               {"pinch": 0.0, "pinch_width": 0.3, "pinch_angle": 0.0, "slack_gap": 0.1 * s.disp,
+                "slack_force": 0.05 * s.force}],
+    lambda s: {"pinch": 0.3, "pinch_width": 0.3, "pinch_angle": 0.5, "slack_gap": 0.1 * s.disp,
+               "slack_force": 0.1 * s.force},
+    lambda s: {"pinch_width": (0.05, 0.5), "slack_gap": (0.0, 0.5 * s.disp),
+               "slack_force": (0.005 * s.force, 0.5 * s.force)}, order=8)
 
 
 EFFECT = register_effect(EffectSpec(
@@ -101,6 +135,13 @@ EFFECT = register_effect(EffectSpec(
                Prior("halfnormal", 1.0)),
      ParamSpec("pinch_angle", "rad", -math.pi / 2, math.pi / 2,
                "angle of the pinching line: 0 at zero force, +-pi/2 at zero displacement",
-               Prior("uniform", -math.pi / 2, math.pi / 2))),
-    2, "pinching: slack near zero force (BWBN), where the loop crosses a line through the origin",
-    (0.0, 0.5, 0.0), apply=apply, hints=HINTS))
+               Prior("uniform", -math.pi / 2, math.pi / 2)),
+     ParamSpec("slack_gap", "m", 0.0, 1e3,
+               "travel a of the series slack element, x_s = a erf(F / sigma) (0: none)",
+               Prior("halfnormal", 0.01), default=0.0),
+     ParamSpec("slack_force", "kN", 1e-9, 1e9,
+               "force width sigma over which the series slack is taken up",
+               Prior("halfnormal", 1.0), default=1.0)),
+    3, "pinching: slack near zero force (BWBN), where the loop crosses a line through the origin",
+    (0.0, 0.5, 0.0, 0.0, 1.0), apply=apply, hints=HINTS, compliance=compliance,
+    compliance_param=3))

@@ -1,0 +1,264 @@
+"""Shape parameters of the effects (issue 12 point 4: kernels physically broader than one shape)
+and the series slack element of ``pinching``.
+
+Each shape parameter's default is the former kernel bit for bit; each new shape has its closed
+form, a tangent consistent with its force, and its physical fact; the slack element agrees with an
+independent series solve (bisection) and a fit recovers its own parameters.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from rrfrei import simulate_force
+from rrfrei.energy import cycle_metrics, dissipated_energy
+from rrfrei.laws import get
+from rrfrei.protocols import protocol
+
+PL = {"k_init": 120.0, "qd": 0.6, "alpha1": 0.2, "alpha2": 0.0, "mu": 2.0}
+BW = {"k_init": 120.0, "qd": 0.6, "alpha1": 0.2, "alpha2": 0.0, "mu": 2.0, "eta": 1.0, "beta": 0.5,
+      "gamma": 0.5}
+T1, U1 = protocol(1)  # growing cycles to 30 mm
+NO_BAND = {"pinch": 0.0, "pinch_width": 0.5, "pinch_angle": 0.0}
+
+
+def _step_force(name, values, u, v, dt=0.05):
+    """Force of one step of ``name`` from its virgin state at displacement u and velocity v."""
+    spec = get(name)
+    p = spec.pack(values)
+    sc = np.array(spec.initial_state, dtype=float)
+    f, k, status = spec.step(p, sc, u, v, dt, sc.copy())
+    assert status == 0
+    return f
+
+
+# --- defaults are the former kernels ---------------------------------------------------------------
+@pytest.mark.parametrize("base", ["plasticity", "bouc_wen"])
+@pytest.mark.parametrize("name,former,default", [
+    ("degradation", {"deg_rate": 5.0}, {"deg_travel": 0.0}),
+    ("rate", {"rate_c": 3.0, "rate_exp": 0.6}, {"rate_sat": 0.0}),
+    ("stiffening", {"stiff_k": 40.0, "stiff_onset": 0.01}, {"stiff_exp": 2.0}),
+    ("pinching", {"pinch": 0.5, "pinch_width": 0.4, "pinch_angle": 0.3},
+     {"slack_gap": 0.0, "slack_force": 0.05}),
+])
+def test_a_shape_parameter_at_its_default_is_the_former_kernel_bit_for_bit(base, name, former, default):
+    values = PL if base == "plasticity" else BW
+    implicit = simulate_force(f"{base}+{name}", {**values, **former}, U1, time=T1)
+    explicit = simulate_force(f"{base}+{name}", {**values, **former, **default}, U1, time=T1)
+    assert np.array_equal(implicit, explicit)
+    assert not np.array_equal(implicit, simulate_force(base, values, U1, time=T1))
+
+
+@pytest.mark.parametrize("base", ["plasticity", "bouc_wen"])
+def test_slack_without_travel_is_the_base_law_whatever_its_force_width(base):
+    values = PL if base == "plasticity" else BW
+    fb = simulate_force(base, values, U1, time=T1)
+    for sg in (1e-6, 0.05, 100.0):
+        f = simulate_force(f"{base}+pinching", {**values, **NO_BAND, "slack_gap": 0.0, "slack_force": sg},
+                           U1, time=T1)
+        assert np.array_equal(f, fb)
+
+
+# --- rate: the Cross form saturates -------------------------------------------------------------
+def test_rate_adds_the_closed_form_cross_force_and_levels_off_at_c_over_lam_to_the_a():
+    c, a, lam = 4.0, 0.8, 50.0
+    vals = {**PL, "rate_c": c, "rate_exp": a, "rate_sat": lam}
+    u = 0.004
+    fb = _step_force("plasticity", PL, u, 0.0)
+    added = []
+    for v in (-0.3, -0.01, 1e-4, 0.002, 0.02, 0.2, 2.0, 20.0):
+        fa = _step_force("plasticity+rate", vals, u, v) - fb
+        assert fa == pytest.approx(c * np.sign(v) * abs(v) ** a / (1 + (lam * abs(v)) ** a), rel=1e-12)
+        added.append(fa)
+    assert np.all(np.diff(added[2:]) > 0)  # grows with the speed ...
+    assert added[-1] < c / lam**a and added[-1] > 0.95 * c / lam**a  # ... up to its plateau
+    # the power law (lam = 0) does not level off
+    p20 = _step_force("plasticity+rate", {**vals, "rate_sat": 0.0}, u, 20.0) - fb
+    assert p20 == pytest.approx(c * 20.0**a, rel=1e-12) and p20 > 10 * c / lam**a
+
+
+def test_saturating_rate_dissipates_in_every_cycle():
+    t = np.linspace(0, 30, 3001)
+    u = 0.02 * np.sin(2 * np.pi * t / 2.0)
+    vals = {**PL, "rate_c": 5.0, "rate_exp": 0.5, "rate_sat": 30.0}
+    f = simulate_force("plasticity+rate", vals, u, time=t)
+    fb = simulate_force("plasticity", PL, u, time=t)
+    mf, mb = cycle_metrics(u, f), cycle_metrics(u, fb)
+    assert len(mf) == len(mb) == 15
+    assert (mf.energy.to_numpy() > mb.energy.to_numpy()).all()
+
+
+# --- stiffening: a power of the excess ----------------------------------------------------------
+@pytest.mark.parametrize("n", [1.5, 3.0, 4.5])
+def test_stiffening_adds_the_closed_form_power_of_the_excess(n):
+    k, us = 50.0, 0.01
+    fb = simulate_force("plasticity", PL, U1)
+    f = simulate_force("plasticity+stiffening", {**PL, "stiff_k": k, "stiff_onset": us, "stiff_exp": n}, U1)
+    e = np.maximum(np.abs(U1) - us, 0.0)
+    np.testing.assert_allclose(f - fb, k * us * np.sign(U1) * (e / us) ** n / n, rtol=1e-12, atol=1e-14)
+
+
+def test_a_larger_stiffening_exponent_starts_later_and_rises_steeper_through_k_s_at_twice_the_onset():
+    k, us = 50.0, 0.01
+    u = np.array([0.0125, 0.02, 0.029])
+    spec, base = get("plasticity+stiffening"), get("plasticity")
+    pb = base.pack(PL)
+    scb = np.array(base.initial_state, dtype=float)
+    tangents = {}
+    for n in (2.0, 4.0):
+        p = spec.pack({**PL, "stiff_k": k, "stiff_onset": us, "stiff_exp": n})
+        sc = np.array(spec.initial_state, dtype=float)
+        tangents[n] = [spec.step(p, sc, x, 0.0, 1.0, sc.copy())[1]
+                       - base.step(pb, scb, x, 0.0, 1.0, scb.copy())[1] for x in u]
+    assert tangents[4.0][0] < tangents[2.0][0]  # later: softer just beyond the onset
+    assert tangents[4.0][1] == pytest.approx(k) and tangents[2.0][1] == pytest.approx(k)  # e = u_s
+    assert tangents[4.0][2] > tangents[2.0][2]  # steeper at large excess
+
+
+# --- degradation: a damage index of work and travel --------------------------------------------
+def test_degradation_fades_by_the_closed_form_of_cumulative_work_and_travel():
+    c, ct = 5.0, 0.4
+    fb = simulate_force("plasticity", PL, U1)
+    f = simulate_force("plasticity+degradation", {**PL, "deg_rate": c, "deg_travel": ct}, U1)
+    w = dissipated_energy(U1, fb)
+    wmax = np.concatenate([[0.0], np.maximum.accumulate(np.maximum(w, 0.0))[:-1]])
+    travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(U1)))])  # to each sample
+    travel = np.concatenate([[0.0], travel[:-1]])  # lagged one step, like the work
+    np.testing.assert_allclose(f, fb / (1 + c * wmax + ct * travel), rtol=1e-9, atol=1e-12)
+
+
+def test_travel_fades_small_cycles_as_much_per_millimetre_as_large_ones_work_does_not():
+    """Per unit travel, 2 mm cycles fade the bearing by the travel term as much as 20 mm cycles;
+    the work term fades them far less (their loops are small)."""
+    def fade(amp, values):
+        u = _sine_cycles(amp, 60.0 * 0.02 / (4 * amp))  # the same travel, 1.2 m
+        f = simulate_force("plasticity+degradation", {**PL, **values}, u)
+        fb = simulate_force("plasticity", PL, u)
+        return 1 - f[-1] / fb[-1] if fb[-1] != 0 else np.nan, u
+
+    t_small, _ = fade(0.002, {"deg_rate": 0.0, "deg_travel": 0.5})
+    t_large, _ = fade(0.02, {"deg_rate": 0.0, "deg_travel": 0.5})
+    e_small, _ = fade(0.002, {"deg_rate": 5.0, "deg_travel": 0.0})
+    e_large, _ = fade(0.02, {"deg_rate": 5.0, "deg_travel": 0.0})
+    assert t_small == pytest.approx(t_large, rel=0.02)
+    assert e_small < 0.2 * e_large
+
+
+def _sine_cycles(amp, cycles, n=200):
+    x = np.linspace(0.0, cycles, int(round(cycles * n)) + 1)
+    return amp * np.sin(2 * np.pi * x + np.pi / 4)
+
+
+# --- tangents --------------------------------------------------------------------------------------
+@pytest.mark.parametrize("name,values", [
+    ("rate", {"rate_c": 5.0, "rate_exp": 0.7, "rate_sat": 20.0}),
+    ("degradation", {"deg_rate": 5.0, "deg_travel": 0.3}),
+    ("stiffening", {"stiff_k": 50.0, "stiff_onset": 0.01, "stiff_exp": 3.5}),
+    ("pinching", {**NO_BAND, "slack_gap": 0.003, "slack_force": 0.1}),
+    ("pinching", {"pinch": 0.4, "pinch_width": 0.4, "pinch_angle": 0.2, "slack_gap": 0.002,
+                  "slack_force": 0.2}),
+])
+def test_tangent_is_the_derivative_of_the_force_within_a_step(name, values):
+    spec = get(f"plasticity+{name}")
+    p = spec.pack({**PL, **values})
+    sc = np.array(spec.initial_state, dtype=float)
+    stt = sc.copy()
+    path = np.concatenate([np.linspace(0, 0.025, 60), np.linspace(0.025, 0.002, 40)])
+    for u in path:
+        assert spec.step(p, sc, u, 0.0, 1.0, stt)[2] == 0
+        sc[:] = stt
+    dt = 0.05
+    for u in (0.0015, 0.005, 0.007, 0.018, 0.0262, -0.004):
+        v = (u - path[-1]) / dt
+        f, k, _ = spec.step(p, sc, u, v, dt, stt.copy())
+        h = 1e-8
+        fp, _, _ = spec.step(p, sc, u + h, (u + h - path[-1]) / dt, dt, stt.copy())
+        fm, _, _ = spec.step(p, sc, u - h, (u - h - path[-1]) / dt, dt, stt.copy())
+        assert k == pytest.approx((fp - fm) / (2 * h), rel=1e-5, abs=1e-6)
+
+
+# --- the slack element -----------------------------------------------------------------------------
+def _series_bisection(base, values, u, a, sg):
+    """The base law in series with x_s = a erf(F / sigma), solved independently of the kernel:
+    per sample, plain bisection on x in [-a, a] for x = a erf(F_b(u - x) / sigma), the base law
+    stepped from its committed state at every trial."""
+    spec = get(base)
+    p = spec.pack(values)
+    sc = np.array(spec.initial_state, dtype=float)
+    out = np.empty(u.size)
+    for i, ui in enumerate(u):
+        def phi(x, ui=ui):
+            st = sc.copy()
+            f = spec.step(p, sc, ui - x, 0.0, 1.0, st)[0]
+            return x - a * math.erf(f / sg), f, st
+
+        lo, hi = -a, a
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            if phi(mid)[0] > 0:
+                hi = mid
+            else:
+                lo = mid
+            if hi - lo < 1e-16:
+                break
+        _, out[i], st = phi(0.5 * (lo + hi))
+        sc[:] = st
+    return out
+
+
+@pytest.mark.parametrize("base", ["plasticity", "bouc_wen"])
+def test_slack_agrees_with_an_independent_series_solve(base):
+    values = PL if base == "plasticity" else BW
+    a, sg = 0.003, 0.08
+    ref = _series_bisection(base, values, U1, a, sg)
+    f = simulate_force(f"{base}+pinching", {**values, **NO_BAND, "slack_gap": a, "slack_force": sg}, U1)
+    np.testing.assert_allclose(f, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
+
+
+def test_slack_on_a_linear_spring_is_elastic_and_soft_near_zero_force_only():
+    k, a, sg = 100.0, 0.004, 0.1
+    u = 0.02 * np.sin(2 * np.pi * np.linspace(0, 3, 1201))
+    lin = {"k": k, "c": 0.0}
+    f = simulate_force("linear+pinching", {**lin, **NO_BAND, "slack_gap": a, "slack_force": sg}, u)
+    # closed form of the series pair: u = F / k + a erf(F / sigma)
+    np.testing.assert_allclose(u, f / k + a * np.vectorize(math.erf)(f / sg), atol=1e-11)
+    assert abs(dissipated_energy(u, f)[-1]) < 1e-9  # no loop: the element stores, it does not dissipate
+    spec = get("linear+pinching")
+    p = spec.pack({**lin, **NO_BAND, "slack_gap": a, "slack_force": sg})
+    sc = np.array(spec.initial_state, dtype=float)
+    k0 = spec.step(p, sc, 0.0, 0.0, 1.0, sc.copy())[1]
+    assert k0 == pytest.approx(k / (1 + k * 2 * a / (math.sqrt(math.pi) * sg)))  # soft at zero force
+    f_far, k_far, _ = spec.step(p, sc, 0.02, 0.0, 1.0, sc.copy())
+    assert f_far == pytest.approx(k * (0.02 - a), rel=1e-6) and k_far == pytest.approx(k, rel=1e-6)
+
+
+def test_slack_lags_each_zero_crossing_and_lowers_the_peak_of_a_hysteretic_loop():
+    a, sg = 0.004, 0.05
+    fb = simulate_force("plasticity", PL, U1)
+    f = simulate_force("plasticity+pinching", {**PL, **NO_BAND, "slack_gap": a, "slack_force": sg}, U1)
+    assert np.abs(f).max() < np.abs(fb).max()
+    assert dissipated_energy(U1, f)[-1] < dissipated_energy(U1, fb)[-1]
+    # on the largest cycles the force crosses zero later than the base law's, by up to the travel
+    last = U1.size - U1.size // 6
+    zb = np.where(np.diff(np.sign(fb[last:])) != 0)[0]
+    zf = np.where(np.diff(np.sign(f[last:])) != 0)[0]
+    assert len(zb) == len(zf) >= 2
+    shift = np.abs(U1[last:][zf] - U1[last:][zb])
+    assert np.all(shift > 0.5 * a) and np.all(shift < 2.5 * a)
+
+
+@pytest.mark.slow
+def test_a_fit_of_the_slack_recovers_its_own_travel_and_force_width():
+    from rrfrei.gap.model import IsolatorModel
+    from rrfrei.io import ShearTest
+
+    a, sg = 0.003, 0.08
+    f = simulate_force("plasticity+pinching", {**PL, **NO_BAND, "slack_gap": a, "slack_force": sg}, U1,
+                       time=T1)
+    y = f + np.random.default_rng(0).normal(0, 0.002, f.size)
+    fit = IsolatorModel("plasticity+pinching", fixed={"alpha2": 0.0, "mu": 2.0}, draws=20).fit(
+        ShearTest("slack", T1, U1, y), seed=0)
+    assert fit.params["slack_gap"] == pytest.approx(a, rel=0.1)
+    assert fit.params["slack_force"] == pytest.approx(sg, rel=0.2)
+    assert fit.params["k_init"] == pytest.approx(PL["k_init"], rel=0.1)
