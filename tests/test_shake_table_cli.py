@@ -155,7 +155,8 @@ def _cycles(amp: float, n: int = 400, name: str = "t") -> ShearTest:
 
 def test_a_held_out_test_is_predicted_from_the_state_the_preceding_runs_left():
     spec = get("plasticity+degradation")
-    p = np.array([5000.0, 100.0, 0.1, 0.0, 2.0, 0.05])
+    p = spec.pack({"k_init": 5000.0, "qd": 100.0, "alpha1": 0.1, "alpha2": 0.0, "mu": 2.0,
+                   "deg_rate": 0.05, "deg_travel": 0.0})
     first, second = _cycles(0.2, name="first"), _cycles(0.1, name="second")
     carried = second.after(first)
     st, f_joined = simulate_law(spec, p, concat_tests([first, second]))

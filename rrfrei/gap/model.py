@@ -188,6 +188,9 @@ def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
     the force; only the test's own samples are returned.
     """
     n = len(test)
+    if np.shape(p) != (len(spec.param_names),):
+        raise ValueError(f"law {spec.name!r}: {np.shape(p)} parameter values, expected "
+                         f"({len(spec.param_names)},) in the order {', '.join(spec.param_names)}")
     F = np.empty(n) if out is None else out
     sc = np.array(spec.initial_state, dtype=float)
     if not test.preceding:
