@@ -63,9 +63,9 @@ MIN_ESS = 5.0
 GLOBAL_EVALS = 300
 """CMA-ES evaluations per free parameter of the baseline's global search (then least squares)."""
 CHECKPOINT_FORMAT = 2
+"""Version of the checkpoint files (part of their key: a change invalidates old ones)."""
 _UNIT_SCALES = Scales(force=1.0, disp=1.0, vel=1.0, energy=1.0)
 """Scales at which an effect's ``scales`` hint is read for its parameter names only."""
-"""Version of the checkpoint files (part of their key: a change invalidates old ones)."""
 
 
 @dataclass(frozen=True)
