@@ -163,7 +163,13 @@ def _same(a, b):
 @njit(cache=True, error_model="numpy")
 def step(p, sc, u, v, dt, st, f, k):
     """Plan Bouc-Wen step (module docstring): forces ``f`` [kN], tangent ``k`` [kN/m], trial
-    state ``st``; status 0, -1 (zero Jacobian diagonal) or -2 (no convergence in 25)."""
+    state ``st``; status 0, -1 (zero Jacobian diagonal) or -2 (no convergence in 25).
+
+    Written as load, compute on scalars, store (every output entry written once, at the end,
+    the previous values where a path leaves one unchanged): an array touched in several branches
+    made Numba keep an atomic incref and decref of four array arguments per call (its
+    reference-count pruning could not pair them; ``perf`` put 15-18% of the samples in
+    ``NRT_incref``/``NRT_decref``)."""
     k_init = p[0]
     qd = p[1]
     k0 = (1.0 - p[2]) * k_init
@@ -173,137 +179,176 @@ def step(p, sc, u, v, dt, st, f, k):
     eta = p[5]
     beta = p[6]
     gamma = p[7]
-    du0 = u[0] - sc[0]
-    du1 = u[1] - sc[1]
-    st[0] = u[0]
-    st[1] = u[1]
-    if not (du0 * du0 + du1 * du1 > DU2_MIN):  # sqrt(du . du) > DBL_EPSILON, exactly
-        # OpenSees keeps q and K of the previous update() call (a repeated call does the same)
-        st[SETTLED] = 1.0
-        kini = A * k0 + k2
-        f[0] = st[4]
-        f[1] = st[5]
-        k[0, 0] = st[6] + kini
-        k[0, 1] = st[7]
-        k[1, 0] = st[8]
-        k[1, 1] = st[9] + kini
-        return 0
-    uy = qd / k0
-    iuy = 1.0 / uy
+    u0 = u[0]
+    u1 = u[1]
+    du0 = u0 - sc[0]
+    du1 = u1 - sc[1]
     zc0 = sc[2]
     zc1 = sc[3]
     z0 = st[2]
     z1 = st[3]
-    em1 = eta - 1.0
-    em2 = eta - 2.0
-    it = 0
-    settled = False
-    tmp2 = 0.0
-    pw2 = pw4 = c0 = c1 = 0.0
-    s0 = s1 = 0.0
-    # the four powers at the start point are a pure function of (z, eta): reused from the state
-    # when the last iteration of the previous call started from this very z (module docstring)
-    hit = (st[POW] == 1.0 and _same(z0, st[POW + 1]) and _same(z1, st[POW + 2])
-           and eta == st[POW + 3])
-    while True:
-        a0 = z0 * z0
-        a1 = z1 * z1
-        if hit:
-            pw2 = st[POW + 4]
-            pw4 = st[POW + 5]
-            c0 = st[POW + 6]
-            c1 = st[POW + 7]
-            hit = False
-        else:
-            znrm = math.sqrt(a0 + a1)  # Vector::Norm: sqrt(0 + z0^2 + z1^2), the same double
-            if znrm == 0.0:
-                znrm = DBL_EPSILON
-            pw2 = znrm ** em2  # four pow calls, as OpenSees (module docstring)
-            pw4 = znrm ** (eta - 4.0)
-            c0 = z0 ** 3.0
-            c1 = z1 ** 3.0
-        s0 = z0
-        s1 = z1
-        tmp1 = z0 * du0 + z1 * du1
-        tmp2 = gamma + beta * sgn(tmp1)
-        tmp3 = pw2 * tmp1 * tmp2
-        f0 = (z0 - zc0) - iuy * (A * du0 - z0 * tmp3)
-        f1 = (z1 - zc1) - iuy * (A * du1 - z1 * tmp3)
-        tmp4 = pw4 * tmp2
-        t = tmp4 / uy
-        d00 = 1.0 + t * (c1 * du1 + 2.0 * a1 * z0 * du0 + z1 * a0 * du1 * em1 + c0 * du0 * eta)
-        d10 = z1 * tmp4 / uy * (a1 * du0 + z0 * z1 * du1 * em2 + a0 * du0 * em1)
-        d01 = z0 * tmp4 / uy * (a0 * du1 + z0 * z1 * du0 * em2 + a1 * du1 * em1)
-        d11 = 1.0 + t * (c0 * du0 + 2.0 * a0 * z1 * du1 + z0 * a1 * du0 * em1 + c1 * du1 * eta)
-        if abs(d00) <= DBL_EPSILON or abs(d11) <= DBL_EPSILON:
-            st[2] = z0
-            st[3] = z1
-            st[SETTLED] = 0.0
-            return -1
-        dz0, dz1 = _solve2(d00, d01, d10, d11, f0, f1)
-        n0 = z0 - dz0
-        n1 = z1 - dz1
-        settled = _same(n0, z0) and _same(n1, z1)  # this iteration left z bit for bit as it was
-        z0 = n0
-        z1 = n1
-        it += 1
-        if not (dz0 * dz0 + dz1 * dz1 >= DZ2_TOL and it < MAX_ITER):  # |dz| >= tol, exactly
-            break
+    q0 = st[4]
+    q1 = st[5]
+    e00 = st[6]
+    e01 = st[7]
+    e10 = st[8]
+    e11 = st[9]
+    pv = st[POW]
+    pz0 = st[POW + 1]
+    pz1 = st[POW + 2]
+    peta = st[POW + 3]
+    ppw2 = st[POW + 4]
+    ppw4 = st[POW + 5]
+    pc0 = st[POW + 6]
+    pc1 = st[POW + 7]
+    f0 = f[0]
+    f1 = f[1]
+    k00 = k[0, 0]
+    k01 = k[0, 1]
+    k10 = k[1, 0]
+    k11 = k[1, 1]
+    kini = A * k0 + k2
+    status = 0
+    settled = 1.0
+    if not (du0 * du0 + du1 * du1 > DU2_MIN):  # sqrt(du . du) > DBL_EPSILON, exactly
+        # OpenSees keeps q and K of the previous update() call (a repeated call does the same)
+        f0 = q0
+        f1 = q1
+        k00 = e00 + kini
+        k01 = e01
+        k10 = e10
+        k11 = e11 + kini
+    else:
+        uy = qd / k0
+        iuy = 1.0 / uy
+        em1 = eta - 1.0
+        em2 = eta - 2.0
+        it = 0
+        same = False
+        tmp2 = 0.0
+        pw2 = pw4 = c0 = c1 = 0.0
+        s0 = s1 = 0.0
+        # the four powers at the start point are a pure function of (z, eta): reused from the
+        # state when the last iteration of the previous call started from this very z
+        hit = pv == 1.0 and _same(z0, pz0) and _same(z1, pz1) and eta == peta
+        while True:
+            a0 = z0 * z0
+            a1 = z1 * z1
+            if hit:
+                pw2 = ppw2
+                pw4 = ppw4
+                c0 = pc0
+                c1 = pc1
+                hit = False
+            else:
+                znrm = math.sqrt(a0 + a1)  # Vector::Norm: sqrt(0 + z0^2 + z1^2), the same double
+                if znrm == 0.0:
+                    znrm = DBL_EPSILON
+                pw2 = znrm ** em2  # four pow calls, as OpenSees (module docstring)
+                pw4 = znrm ** (eta - 4.0)
+                c0 = z0 ** 3.0
+                c1 = z1 ** 3.0
+            s0 = z0
+            s1 = z1
+            tmp1 = z0 * du0 + z1 * du1
+            tmp2 = gamma + beta * sgn(tmp1)
+            tmp3 = pw2 * tmp1 * tmp2
+            r0 = (z0 - zc0) - iuy * (A * du0 - z0 * tmp3)
+            r1 = (z1 - zc1) - iuy * (A * du1 - z1 * tmp3)
+            tmp4 = pw4 * tmp2
+            t = tmp4 / uy
+            d00 = 1.0 + t * (c1 * du1 + 2.0 * a1 * z0 * du0 + z1 * a0 * du1 * em1 + c0 * du0 * eta)
+            d10 = z1 * tmp4 / uy * (a1 * du0 + z0 * z1 * du1 * em2 + a0 * du0 * em1)
+            d01 = z0 * tmp4 / uy * (a0 * du1 + z0 * z1 * du0 * em2 + a1 * du1 * em1)
+            d11 = 1.0 + t * (c0 * du0 + 2.0 * a0 * z1 * du1 + z0 * a1 * du0 * em1 + c1 * du1 * eta)
+            if abs(d00) <= DBL_EPSILON or abs(d11) <= DBL_EPSILON:
+                status = -1  # z of this iteration's start is kept, the powers cache unchanged
+                break
+            dz0, dz1 = _solve2(d00, d01, d10, d11, r0, r1)
+            n0 = z0 - dz0
+            n1 = z1 - dz1
+            same = _same(n0, z0) and _same(n1, z1)  # this iteration left z bit for bit as it was
+            z0 = n0
+            z1 = n1
+            it += 1
+            if not (dz0 * dz0 + dz1 * dz1 >= DZ2_TOL and it < MAX_ITER):  # |dz| >= tol, exactly
+                break
+        if status == 0:
+            # the powers at the last iteration's start point (z itself when settled)
+            pv = 1.0
+            pz0 = s0
+            pz1 = s1
+            peta = eta
+            ppw2 = pw2
+            ppw4 = pw4
+            pc0 = c0
+            pc1 = c1
+            if it >= MAX_ITER:
+                status = -2
+        if status != 0 or not same:
+            settled = 0.0
+        if status == 0:
+            tmp5 = pw2 * tmp2  # OpenSees recomputes pow(zNrm, eta-2) of the last iteration
+            r12 = du0 / du1
+            r21 = du1 / du0
+            if du0 * du1 == 0.0:
+                r12 = 0.0
+                r21 = 0.0
+            g00 = A - z0 * tmp5 * (z0 + z1 * r21)
+            g01 = (A - z0 * z0 * tmp5) * r12 - z0 * z1 * tmp5
+            g10 = (A - z1 * z1 * tmp5) * r21 - z0 * z1 * tmp5
+            g11 = A - z1 * tmp5 * (z1 + z0 * r12)
+            if abs(g00) > 1.0:
+                g00 = 1.0
+            if abs(g01) > 1.0:
+                g01 = sgn(g01)
+            if abs(g10) > 1.0:
+                g10 = sgn(g10)
+            if abs(g11) > 1.0:
+                g11 = 1.0
+            q0 = qd * z0 + k2 * u0
+            q1 = qd * z1 + k2 * u1
+            k00 = k0 * g00 + k2
+            k11 = k0 * g11 + k2
+            if k3 != 0.0:
+                q0 += k3 * sgn(u0) * powabs(u0, mu)
+                q1 += k3 * sgn(u1) * powabs(u1, mu)
+                k00 += k3 * mu * powabs(u0, mu - 1.0)
+                k11 += k3 * mu * powabs(u1, mu - 1.0)
+            k01 = k0 * g01
+            k10 = k0 * g10
+            f0 = q0
+            f1 = q1
+            e00 = k00 - kini
+            e01 = k01
+            e10 = k10
+            e11 = k11 - kini
+    st[0] = u0
+    st[1] = u1
     st[2] = z0
     st[3] = z1
-    st[SETTLED] = 1.0 if settled else 0.0
-    st[POW] = 1.0  # the powers at the last iteration's start point (z itself when settled)
-    st[POW + 1] = s0
-    st[POW + 2] = s1
-    st[POW + 3] = eta
-    st[POW + 4] = pw2
-    st[POW + 5] = pw4
-    st[POW + 6] = c0
-    st[POW + 7] = c1
-    if it >= MAX_ITER:
-        st[SETTLED] = 0.0
-        return -2
-    tmp5 = pw2 * tmp2  # OpenSees recomputes pow(zNrm, eta-2) of the last iteration: same value
-    r12 = du0 / du1
-    r21 = du1 / du0
-    if du0 * du1 == 0.0:
-        r12 = 0.0
-        r21 = 0.0
-    g00 = A - z0 * tmp5 * (z0 + z1 * r21)
-    g01 = (A - z0 * z0 * tmp5) * r12 - z0 * z1 * tmp5
-    g10 = (A - z1 * z1 * tmp5) * r21 - z0 * z1 * tmp5
-    g11 = A - z1 * tmp5 * (z1 + z0 * r12)
-    if abs(g00) > 1.0:
-        g00 = 1.0
-    if abs(g01) > 1.0:
-        g01 = sgn(g01)
-    if abs(g10) > 1.0:
-        g10 = sgn(g10)
-    if abs(g11) > 1.0:
-        g11 = 1.0
-    q0 = qd * z0 + k2 * u[0]
-    q1 = qd * z1 + k2 * u[1]
-    k00 = k0 * g00 + k2
-    k11 = k0 * g11 + k2
-    if k3 != 0.0:
-        q0 += k3 * sgn(u[0]) * powabs(u[0], mu)
-        q1 += k3 * sgn(u[1]) * powabs(u[1], mu)
-        k00 += k3 * mu * powabs(u[0], mu - 1.0)
-        k11 += k3 * mu * powabs(u[1], mu - 1.0)
-    f[0] = q0
-    f[1] = q1
-    k[0, 0] = k00
-    k[0, 1] = k0 * g01
-    k[1, 0] = k0 * g10
-    k[1, 1] = k11
-    kini = A * k0 + k2
     st[4] = q0
     st[5] = q1
-    st[6] = k00 - kini
-    st[7] = k[0, 1]
-    st[8] = k[1, 0]
-    st[9] = k11 - kini
-    return 0
+    st[6] = e00
+    st[7] = e01
+    st[8] = e10
+    st[9] = e11
+    st[SETTLED] = settled
+    st[POW] = pv
+    st[POW + 1] = pz0
+    st[POW + 2] = pz1
+    st[POW + 3] = peta
+    st[POW + 4] = ppw2
+    st[POW + 5] = ppw4
+    st[POW + 6] = pc0
+    st[POW + 7] = pc1
+    f[0] = f0
+    f[1] = f1
+    k[0, 0] = k00
+    k[0, 1] = k01
+    k[1, 0] = k10
+    k[1, 1] = k11
+    return status
 
 
 SPEC = register(
