@@ -299,6 +299,12 @@ def step(p, sc, u, v, dt, st, f, k):
         iuy = 1.0 / uy
         em1 = eta - 1.0
         em2 = eta - 2.0
+        em4 = eta - 4.0
+        r12 = du0 / du1  # the tangent's ratios (used after the loop; divided here, off its path)
+        r21 = du1 / du0
+        if du0 * du1 == 0.0:
+            r12 = 0.0
+            r21 = 0.0
         it = 0
         same = False
         tmp2 = 0.0
@@ -317,13 +323,13 @@ def step(p, sc, u, v, dt, st, f, k):
                 c1 = pc1
                 hit = False
             else:
+                c0 = _cube(z0)  # pow(z0, 3.0), bit for bit
+                c1 = _cube(z1)
                 znrm = math.sqrt(a0 + a1)  # Vector::Norm: sqrt(0 + z0^2 + z1^2), the same double
                 if znrm == 0.0:
                     znrm = DBL_EPSILON
-                pw2 = znrm ** em2  # four pow calls, as OpenSees (module docstring)
-                pw4 = znrm ** (eta - 4.0)
-                c0 = _cube(z0)  # pow(z0, 3.0), bit for bit
-                c1 = _cube(z1)
+                pw4 = znrm ** em4  # (the Jacobian's power first: it is on the critical path)
+                pw2 = znrm ** em2
             s0 = z0
             s1 = z1
             tmp1 = z0 * du0 + z1 * du1
@@ -365,11 +371,6 @@ def step(p, sc, u, v, dt, st, f, k):
             settled = 0.0
         if status == 0:
             tmp5 = pw2 * tmp2  # OpenSees recomputes pow(zNrm, eta-2) of the last iteration
-            r12 = du0 / du1
-            r21 = du1 / du0
-            if du0 * du1 == 0.0:
-                r12 = 0.0
-                r21 = 0.0
             g00 = A - z0 * tmp5 * (z0 + z1 * r21)
             g01 = (A - z0 * z0 * tmp5) * r12 - z0 * z1 * tmp5
             g10 = (A - z1 * z1 * tmp5) * r21 - z0 * z1 * tmp5
