@@ -131,10 +131,19 @@ CUBE_MIN = 2.0 ** -200
 CUBE_MAX = 2.0 ** 200
 """Range of |z| where :func:`_cube` may skip ``pow`` (its cube, tail and ulp stay normal)."""
 CUBE_NEAR = 0.45
-""":func:`_cube` returns the double R nearest to the exact cube only when the cube is within
-``CUBE_NEAR`` ulp of R (0.05 ulp or more from a rounding midpoint): glibc's ``pow`` (error
-below 0.54 ulp by its source, ``e_pow.c``; measured: where it is not R, the cube lies within
-0.008 ulp of a midpoint, 84,267 of 1e8 random arguments) must then return R as well."""
+"""Over [CUBE_MIN, CUBE_MAX], :func:`_cube` returns the double R nearest to the exact cube only
+when the cube is within ``CUBE_NEAR`` ulp of R.  glibc's ``pow`` (since 2.28, ``e_pow.c``)
+states its error as ulperr_exp + |y log x| relerr_log 2^53, with ulperr_exp = 0.509 ulp
+(0.511 without FMA) and relerr_log = 1.3 2^-68 (1.5 2^-68), at most 0.54 ulp; for y = 3 and
+|x| in this range, below 0.531 ulp: every other double is more than 0.55 ulp from the cube, so
+``pow`` returns R too."""
+CUBE_CLOSE = 2.0 ** 8
+CUBE_NEAR_CLOSE = 0.485
+"""For 2^-8 <= |z| <= 2^8 (|3 log|z|| <= 16.7: the log term is below 0.0008 ulp, the error of
+``pow`` below 0.512 ulp), the margin is ``CUBE_NEAR_CLOSE``: every other double is more than
+0.515 ulp from the cube.  Measured: where ``pow`` is not R, the cube lies within 0.008 ulp of a
+midpoint (84,267 of 1e8 random arguments in [0.01, 4]; 167,296 of 2e8 log-uniform in
+[2^-8, 2^8], all within 0.0087 ulp)."""
 MANTISSA = (1 << 52) - 1
 
 
@@ -179,8 +188,9 @@ def _cube(z):
     The cube is formed exactly with two FMAs: z^2 = s + s_l, s |z| = c + c_l, so
     |z|^3 = c + (c_l + s_l |z|) to about 2^-104 |z|^3, and t = (c_l + s_l |z|) / ulp(c)
     (|t| < 1.5) says which of c and its neighbours is the nearest double R and how far the cube
-    is from it.  Within ``CUBE_NEAR`` = 0.45 ulp of R, R is returned: ``pow`` errs by less than
-    0.55 ulp, so it returns R too (:data:`CUBE_NEAR`).  Otherwise (about one argument in ten),
+    is from it.  Within 0.485 ulp of R for 2^-8 <= |z| <= 2^8 (``CUBE_NEAR_CLOSE``), 0.45 ulp
+    elsewhere (``CUBE_NEAR``), R is returned: ``pow`` errs by less than 0.512 and 0.531 ulp there,
+    so it returns R too.  Otherwise (about 3 arguments in 100 in [2^-8, 2^8], 1 in 10 beyond),
     and for zero, |z| outside [2^-200, 2^200], non-finite z and c at a binade edge, ``pow`` is
     called.  ``pow(-x, 3) = -pow(x, 3)`` in glibc (it works on |x| and sets the sign), hence the
     sign copied from z.  tests/test_plan_laws_opensees.py compares it with ``pow`` over 10^6
@@ -196,7 +206,8 @@ def _cube(z):
     m = b & MANTISSA
     t = tail * _double((2098 - (b >> 52)) << 52)  # tail / ulp(c), exact (a power of two)
     k = int(t + 1.5) - 1  # the nearest integer to t where it matters (|t - k| <= CUBE_NEAR)
-    if abs(t - k) > CUBE_NEAR or m < 2 or m > MANTISSA - 2:
+    near = CUBE_NEAR_CLOSE if 1.0 / CUBE_CLOSE <= a <= CUBE_CLOSE else CUBE_NEAR
+    if abs(t - k) > near or m < 2 or m > MANTISSA - 2:
         return z ** 3.0
     return math.copysign(_double(b + k), z)
 
