@@ -48,9 +48,9 @@ the state when the last iteration of the previous call started from that very z 
 [11:19], keyed bit for bit on z and eta): true after a settled call and after nearly every
 second call, so about one local iteration's four ``pow`` per step are saved, with the same bits.
 
-Arithmetic: OpenSees' own, operation for operation (four ``pow`` calls per local iteration:
-|z|^(eta-2), |z|^(eta-4), z_x^3, z_y^3; the same libm ``pow`` as openseespy's in-process
-library); the only rewritten tests are exact: |dz| >= tol as |dz|^2 >= 1e-24 and
+Arithmetic: OpenSees' own, operation for operation (four powers per local iteration:
+|z|^(eta-2), |z|^(eta-4), z_x^3, z_y^3, with the values of the same libm ``pow`` as openseespy's
+in-process library); the only rewritten tests are exact: |dz| >= tol as |dz|^2 >= 1e-24 and
 |du| > DBL_EPSILON as |du|^2 > 4.930380657631325e-32, the thresholds between which the correctly
 rounded square root changes side (no square root, same outcome for every double).  Evidence: the
 benchmark's 5,000-step figure-eight gives forces bit for bit equal to openseespy's at every sample;
@@ -63,7 +63,20 @@ were measured and rejected: |z|^(eta-4) as |z|^(eta-2) / |z|^2 with z_i^3 as z_i
 per iteration, about 1.2x faster) gave 73 mismatches, z_i^3 as z_i^2 z_i alone 53 -- a Jacobian
 rounded differently moves where the iteration lands among the doubles around the root (1 step in
 5,000 on the benchmark), which decides rounding-borderline failures.  ``pow(z, 3.0)`` of glibc is
-not the correctly rounded cube (it differs in about 0.1% of arguments), so it cannot be replaced.
+not the correctly rounded cube (it differs in about 0.1% of arguments), so z_i^3 keeps its
+values, but not its cost: :func:`_cube` forms the cube exactly (two FMAs) and returns the nearest
+double where the cube is far enough from a rounding midpoint that ``pow``, by its stated error
+bound, returns that double too, and calls ``pow`` otherwise (about 3% of the cubes); it equals
+``pow`` bit for bit over 10^6 test arguments, where ``pow`` is not the nearest double in several
+hundred.
+
+Speed (what differs from OpenSees' code, with the same values): the two cubes without ``pow``
+(above); the powers reused by the next call (above); pow(|z|, eta-4), which heads the
+iteration's critical path (z -> |z| -> pow -> Jacobian -> the solve's three divisions -> z), is
+called before pow(|z|, eta-2), needed later in the solve; and the step reads its arrays once,
+computes on scalars and writes each output once at its end -- with an array touched in several
+branches Numba kept an atomic incref/decref of four array arguments per call (15-18% of the
+samples of ``perf``).  ``docs/plan_laws.md`` gives where the time of a step goes.
 
 Tangent (l.555-582): with t5 = |z_prev|^(eta-2) s of the last iteration's start point,
 du_x/du_y ratios (0 where du_x du_y = 0)::
