@@ -257,7 +257,11 @@ def test_bouc_wen_push_in_any_direction_is_the_push_along_an_axis_rotated(p, ang
 def test_bouc_wen_along_one_axis_is_the_unidirectional_law(p, u, axis, sign):
     """Same iteration, same status and failure sample; OpenSees writes the 3-D residual as
     (1/u_y)(A du - z |z|^(eta-2) (z du) s) and the 2-D one as (du/u_y)(A - |z|^eta s), which
-    round differently: forces agree to 1e-14 of the peak force, not bit for bit."""
+    round differently: forces agree to 1e-14 of the peak force, not bit for bit, or to what
+    either local Newton pins z to, |dz| < 1e-12 (times qd), whichever is larger.  The second
+    term matters only for a peak force near qd 1e-12/1e-14: with eta < 1 the Jacobian is
+    singular at z = 0, and a 1e-9 m path (hypothesis: eta = 0.21875, forces ~1e-8 kN)
+    converges to the two roundings 5e-14 of the peak apart."""
     path = np.zeros((u.size, 2))
     path[:, axis] = sign * u
     fail = fail1 = -1
@@ -274,7 +278,7 @@ def test_bouc_wen_along_one_axis_is_the_unidirectional_law(p, u, axis, sign):
     if f is not None:
         assert np.all(f[:, 1 - axis] == 0.0)
         scale = np.max(np.abs(f1))
-        assert np.max(np.abs(f[:, axis] - f1)) <= 1e-14 * scale
+        assert np.max(np.abs(f[:, axis] - f1)) <= max(1e-14 * scale, 1e-12 * p["qd"])
 
 
 @given(p=bouc_wen_params(dissipative=True), path=plan_paths(), angle=st.floats(0.0, 2 * np.pi))
