@@ -31,7 +31,8 @@ def step(p, sc, u, v, dt, st):
     k2 = p[2] * k_init
     k3 = p[3] * k_init
     mu = p[4]
-    q_tr = k0 * (u - sc[0])
+    s0 = sc[0]
+    q_tr = k0 * (u - s0)
     y = abs(q_tr) - qd
     nl_f = 0.0
     nl_k = 0.0
@@ -39,10 +40,16 @@ def step(p, sc, u, v, dt, st):
         nl_f = k3 * sgn(u) * powabs(u, mu)
         nl_k = k3 * mu * powabs(u, mu - 1.0)
     if y <= 0.0:
-        return q_tr + k2 * u + nl_f, k0 + k2 + nl_k, 0
-    s = sgn(q_tr)
-    st[0] = sc[0] + (y / k0) * s
-    return qd * s + k2 * u + nl_f, k2 + nl_k, 0
+        t0 = st[0]
+        f = q_tr + k2 * u + nl_f
+        kt = k0 + k2 + nl_k
+    else:
+        s = sgn(q_tr)
+        t0 = s0 + (y / k0) * s
+        f = qd * s + k2 * u + nl_f
+        kt = k2 + nl_k
+    st[0] = t0
+    return f, kt, 0
 
 
 def _check(p: np.ndarray) -> None:

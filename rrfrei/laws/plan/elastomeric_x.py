@@ -89,94 +89,119 @@ from rrfrei.laws.plan.registry import PlanLawSpec, register
 @njit(cache=True, error_model="numpy")
 def step(p, sc, u, v, dt, st, f, k):
     """ElastomericX shear forces [kN], tangent [kN/m] and status in plan (module docstring)."""
+    # load, compute on scalars, store once at the end: Numba then pairs every array argument's
+    # reference count (an early return with array writes left ~4 atomic pairs per call)
     fy = p[0]
     cd = p[8]
     ke, k0 = stiffness(p)
     kinit = k0 + ke
-    d1 = u[0] - sc[0]
-    d2 = u[1] - sc[1]
-    st[0] = u[0]
-    st[1] = u[1]
-    if not (math.sqrt(d1 * d1 + d2 * d2) > 0.0):
-        f[0] = st[4]
-        f[1] = st[5]
-        k[0, 0] = st[6] + k0 + ke  # as the 1-D port: (dk + k0) + ke
-        k[0, 1] = st[7]
-        k[1, 0] = st[8]
-        k[1, 1] = st[9] + k0 + ke
-        return 0
-    uy = fy / k0
-    ruy = 1.0 / uy
+    u0 = u[0]
+    u1 = u[1]
+    d1 = u0 - sc[0]
+    d2 = u1 - sc[1]
     zc1 = sc[2]
     zc2 = sc[3]
+    v0 = v[0]
+    v1 = v[1]
     z1 = st[2]
     z2 = st[3]
-    it = 0
-    t1 = 0.0
-    t2 = 0.0
-    while True:
-        t1 = BETA_CONST + GAMMA_SIGN * sgn(z1 * d1)
-        t2 = BETA_CONST + GAMMA_SIGN * sgn(z2 * d2)
-        t3 = z1 * d1 * t1 + z2 * d2 * t2
-        f1 = z1 - zc1 - ruy * (d1 - z1 * t3)
-        f2 = z2 - zc2 - ruy * (d2 - z2 * t3)
-        j11 = 1.0 + ruy * (2.0 * z1 * d1 * t1 + z2 * d2 * t2)
-        j21 = (t1 / uy) * z2 * d1
-        j12 = (t2 / uy) * z1 * d2
-        j22 = 1.0 + ruy * (z1 * d1 * t1 + 2.0 * z2 * d2 * t2)
-        if abs(j11) <= DBL_EPSILON or abs(j22) <= DBL_EPSILON:
-            st[2] = z1
-            st[3] = z2
-            f[0] = st[4]
-            f[1] = st[5]
-            return -1
-        dz1 = (f1 * j22 - f2 * j12) / (j11 * j22 - j12 * j21)
-        dz2 = (f1 * j21 - f2 * j11) / (j12 * j21 - j11 * j22)
-        z1 -= dz1
-        z2 -= dz2
-        it += 1
-        if not (math.sqrt(dz1 * dz1 + dz2 * dz2) >= TOL and it < MAX_ITER):
-            break
+    s4 = st[4]
+    s5 = st[5]
+    s6 = st[6]
+    s7 = st[7]
+    s8 = st[8]
+    s9 = st[9]
+    f0 = s4
+    f1_ = s5
+    k00 = k[0, 0]
+    k01 = k[0, 1]
+    k10 = k[1, 0]
+    k11 = k[1, 1]
+    status = 0
+    if not (math.sqrt(d1 * d1 + d2 * d2) > 0.0):
+        k00 = s6 + k0 + ke  # as the 1-D port: (dk + k0) + ke
+        k01 = s7
+        k10 = s8
+        k11 = s9 + k0 + ke
+    else:
+        uy = fy / k0
+        ruy = 1.0 / uy
+        it = 0
+        t1 = 0.0
+        t2 = 0.0
+        while True:
+            t1 = BETA_CONST + GAMMA_SIGN * sgn(z1 * d1)
+            t2 = BETA_CONST + GAMMA_SIGN * sgn(z2 * d2)
+            t3 = z1 * d1 * t1 + z2 * d2 * t2
+            f1 = z1 - zc1 - ruy * (d1 - z1 * t3)
+            f2 = z2 - zc2 - ruy * (d2 - z2 * t3)
+            j11 = 1.0 + ruy * (2.0 * z1 * d1 * t1 + z2 * d2 * t2)
+            j21 = (t1 / uy) * z2 * d1
+            j12 = (t2 / uy) * z1 * d2
+            j22 = 1.0 + ruy * (z1 * d1 * t1 + 2.0 * z2 * d2 * t2)
+            if abs(j11) <= DBL_EPSILON or abs(j22) <= DBL_EPSILON:
+                status = -1  # z of this iteration's start kept; force and tangent as before
+                break
+            dz1 = (f1 * j22 - f2 * j12) / (j11 * j22 - j12 * j21)
+            dz2 = (f1 * j21 - f2 * j11) / (j12 * j21 - j11 * j22)
+            z1 -= dz1
+            z2 -= dz2
+            it += 1
+            if not (math.sqrt(dz1 * dz1 + dz2 * dz2) >= TOL and it < MAX_ITER):
+                break
+        if status == 0 and it >= MAX_ITER:
+            status = -2
+        if status == 0:
+            r12 = 0.0
+            r21 = 0.0
+            if d1 * d2 != 0.0:
+                r12 = d1 / d2
+                r21 = d2 / d1
+            dz11 = ruy * (1.0 - z1 * (z1 * t1 + z2 * t2 * r21))
+            dz12 = ruy * (r12 - z1 * (z1 * t1 * r12 + z2 * t2))
+            dz21 = ruy * (r21 - z2 * (z1 * t1 + z2 * t2 * r21))
+            dz22 = ruy * (1.0 - z2 * (z1 * t1 * r12 + z2 * t2))
+            if not (math.isfinite(fy * dz11) and math.isfinite(fy * dz12)
+                    and math.isfinite(fy * dz21) and math.isfinite(fy * dz22)):
+                # An increment component ~1e-300 of the other overflows r12 or r21, or the
+                # tangent fy dz/du built from them (hypothesis: d2 = 1e-310 d1 with fy = 100)
+                # (and so OpenSees' tangent: inf/nan, harmless to its imposed-displacement
+                # analyses, fatal to a Newmark step).  That component is taken as the exact
+                # zero it is physically (the d1 d2 == 0 branch): the force is unchanged, the
+                # tangent deviates from OpenSees only where OpenSees' is not finite.
+                dz11 = ruy * (1.0 - z1 * z1 * t1)
+                dz12 = -ruy * z1 * z2 * t2
+                dz21 = -ruy * z2 * z1 * t1
+                dz22 = ruy * (1.0 - z2 * z2 * t2)
+            f0 = cd * v0 + fy * z1 + ke * u0
+            f1_ = cd * v1 + fy * z2 + ke * u1
+            k00 = cd / dt + fy * dz11 + ke
+            k01 = fy * dz12
+            k10 = fy * dz21
+            k11 = cd / dt + fy * dz22 + ke
+            s4 = f0
+            s5 = f1_
+            s6 = k00 - kinit
+            s7 = k01
+            s8 = k10
+            s9 = k11 - kinit
+    st[0] = u0
+    st[1] = u1
     st[2] = z1
     st[3] = z2
-    if it >= MAX_ITER:
-        f[0] = st[4]
-        f[1] = st[5]
-        return -2
-    r12 = 0.0
-    r21 = 0.0
-    if d1 * d2 != 0.0:
-        r12 = d1 / d2
-        r21 = d2 / d1
-    dz11 = ruy * (1.0 - z1 * (z1 * t1 + z2 * t2 * r21))
-    dz12 = ruy * (r12 - z1 * (z1 * t1 * r12 + z2 * t2))
-    dz21 = ruy * (r21 - z2 * (z1 * t1 + z2 * t2 * r21))
-    dz22 = ruy * (1.0 - z2 * (z1 * t1 * r12 + z2 * t2))
-    if not (math.isfinite(fy * dz11) and math.isfinite(fy * dz12) and math.isfinite(fy * dz21)
-            and math.isfinite(fy * dz22)):
-        # An increment component ~1e-300 of the other overflows r12 or r21, or the tangent
-        # fy dz/du built from them (hypothesis: d2 = 1e-310 d1 with fy = 100) (and so OpenSees'
-        # tangent: inf/nan, harmless to its imposed-displacement analyses, fatal to a Newmark
-        # step).  That component is taken as the exact zero it is physically (the d1 d2 == 0
-        # branch): the force is unchanged, the tangent deviates from OpenSees only where
-        # OpenSees' is not finite.
-        dz11 = ruy * (1.0 - z1 * z1 * t1)
-        dz12 = -ruy * z1 * z2 * t2
-        dz21 = -ruy * z2 * z1 * t1
-        dz22 = ruy * (1.0 - z2 * z2 * t2)
-    f[0] = cd * v[0] + fy * z1 + ke * u[0]
-    f[1] = cd * v[1] + fy * z2 + ke * u[1]
-    k[0, 0] = cd / dt + fy * dz11 + ke
-    k[0, 1] = fy * dz12
-    k[1, 0] = fy * dz21
-    k[1, 1] = cd / dt + fy * dz22 + ke
-    st[4] = f[0]
-    st[5] = f[1]
-    st[6] = k[0, 0] - kinit
-    st[7] = k[0, 1]
-    st[8] = k[1, 0]
-    st[9] = k[1, 1] - kinit
-    return 0
+    st[4] = s4
+    st[5] = s5
+    st[6] = s6
+    st[7] = s7
+    st[8] = s8
+    st[9] = s9
+    f[0] = f0
+    f[1] = f1_
+    k[0, 0] = k00
+    k[0, 1] = k01
+    k[1, 0] = k10
+    k[1, 1] = k11
+    return status
 
 
 SPEC = register(

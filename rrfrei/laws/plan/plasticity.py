@@ -52,7 +52,7 @@ def _hardening(k3, mu, x):
     return k3 * sgn(x) * powabs(x, mu), k3 * mu * powabs(x, mu - 1.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)
 def step(p, sc, u, v, dt, st, f, k):
     """Plan plasticity step (module docstring): forces ``f`` [kN], tangent ``k`` [kN/m],
     trial plastic displacement ``st`` [m]; status 0 (the return mapping cannot fail)."""
@@ -62,33 +62,45 @@ def step(p, sc, u, v, dt, st, f, k):
     k2 = p[2] * k_init
     k3 = p[3] * k_init
     mu = p[4]
-    q0 = k0 * (u[0] - sc[0])
-    q1 = k0 * (u[1] - sc[1])
+    u0 = u[0]
+    u1 = u[1]
+    s0 = sc[0]
+    s1 = sc[1]
+    q0 = k0 * (u0 - s0)
+    q1 = k0 * (u1 - s1)
     nrm = math.sqrt(q0 * q0 + q1 * q1)  # OpenSees Vector::Norm
     y = nrm - qd
-    h0, g0 = _hardening(k3, mu, u[0])
-    h1, g1 = _hardening(k3, mu, u[1])
+    h0, g0 = _hardening(k3, mu, u0)
+    h1, g1 = _hardening(k3, mu, u1)
     if y <= 0.0:
-        f[0] = q0 + k2 * u[0] + h0
-        f[1] = q1 + k2 * u[1] + h1
-        k[0, 0] = k0 + k2 + g0
-        k[0, 1] = 0.0
-        k[1, 0] = 0.0
-        k[1, 1] = k0 + k2 + g1
-        return 0
-    n0 = q0 / nrm
-    n1 = q1 / nrm
-    dg = y / k0
-    st[0] = sc[0] + dg * n0
-    st[1] = sc[1] + dg * n1
-    f[0] = qd * n0 + k2 * u[0] + h0
-    f[1] = qd * n1 + k2 * u[1] + h1
-    d = nrm * nrm * nrm
-    c = qd * k0
-    k[0, 0] = c * q1 * q1 / d + k2 + g0
-    k[0, 1] = -c * q0 * q1 / d
-    k[1, 0] = k[0, 1]
-    k[1, 1] = c * q0 * q0 / d + k2 + g1
+        f0 = q0 + k2 * u0 + h0
+        f1 = q1 + k2 * u1 + h1
+        k00 = k0 + k2 + g0
+        k01 = 0.0
+        k11 = k0 + k2 + g1
+        t0 = st[0]
+        t1 = st[1]
+    else:
+        n0 = q0 / nrm
+        n1 = q1 / nrm
+        dg = y / k0
+        t0 = s0 + dg * n0
+        t1 = s1 + dg * n1
+        f0 = qd * n0 + k2 * u0 + h0
+        f1 = qd * n1 + k2 * u1 + h1
+        d = nrm * nrm * nrm
+        c = qd * k0
+        k00 = c * q1 * q1 / d + k2 + g0
+        k01 = -c * q0 * q1 / d
+        k11 = c * q0 * q0 / d + k2 + g1
+    st[0] = t0
+    st[1] = t1
+    f[0] = f0
+    f[1] = f1
+    k[0, 0] = k00
+    k[0, 1] = k01
+    k[1, 0] = k01
+    k[1, 1] = k11
     return 0
 
 
