@@ -88,9 +88,9 @@ ENGINE_HASH = _source_hash([f for d in ("gap", "laws", "calibration") for f in (
 FULL = Settings(rate=5.0, draws=50)
 """The table's settings: 5 Hz (50 samples per 10 s cycle of protocol 1) and 50 draws (on 26
 cases, 10 Hz and 100 draws gave the same 26 verdicts at twice the time).  The 310 cases took
-1,226 s of CPU (3.95 s per case, median 3.8 s, max 9.0 s), 17 minutes of wall time in 2
-processes on the shared 2-core machine under a load of 3 from other work, so about 10 minutes
-on 2 cores of its own (docs/gap/validation.md)."""
+1,176 s of CPU (3.8 s per case, median 3.7 s, max 10.7 s), 13 minutes of wall time in 2
+processes on the shared 2-core machine under a load of about 3 from other work, so about 10
+minutes on 2 cores of its own (docs/gap/validation.md)."""
 REDUCED = FULL
 """The settings of quick runs (the same: a quick run has fewer cases, not a coarser resolution)."""
 
