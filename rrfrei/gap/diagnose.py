@@ -19,7 +19,9 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    rejected); without held-out data the bootstrap bound of the calibration test's own shrink
    must lie above 10 %.  Rank tests do not lose power when a few blocks gain enormously, the failure of the
    former "gain > 2 paired se" rule (issue 12).  The diagnosis is the significant effect with the
-   largest held-out lpd gain (calibration gain without held-out data), or ``none``;
+   largest held-out lpd gain (calibration gain without held-out data), or ``none``; with
+   held-out data, a significant effect with fewer fitted parameters that no higher-ranked one
+   beats on the held-out blocks is named instead (parsimony, :func:`_parsimonious`);
 4. confounding guard: a protocol whose amplitude only grows moves amplitude, dissipated energy
    and time together, so on the calibration test alone degradation, scragging, rollover and slip
    can stand in for one another.  Every refit starts from the baseline optimum and from the
@@ -358,6 +360,39 @@ def _score(sc: _Scorer, effect: str, fit: FitResult, ref: FitResult, screen: flo
                        blocks_calibration=cal_ev, blocks_holdout=ho_ev, shrink_ci=sh_ev, why=why)
 
 
+def _n_free(fit: FitResult) -> int:
+    return len(getattr(fit, "free", fit.params))
+
+
+def _parsimonious(sc: _Scorer, fits: dict, sig: list[EffectScore]) -> tuple[str, str]:
+    """The significant effect to name with held-out data, and a note ("" when it is the leader).
+
+    ``sig`` in ranking order (largest held-out lpd gain first).  An effect is *admissible* when
+    no significant effect ranked above it beats it on the held-out blocks (the block rank test of
+    :mod:`rrfrei.gap.decision` on the per-block squared-error reductions of the higher-ranked
+    model against it); the admissible effect with the fewest fitted parameters is named (the
+    leader on a tie).  This is the parsimony rule of model selection, the "one-standard-error
+    rule" (Hastie, Tibshirani & Friedman 2009, *The Elements of Statistical Learning*, 2nd ed.,
+    sec. 7.10): among models whose predictive error the data cannot tell apart, the simplest.  A
+    flexible candidate (pinching: band and slack, five parameters) can then no longer take the
+    place of a simpler effect it only imitates, while an effect whose held-out gain is
+    significantly larger than a simpler one's keeps its place.
+    """
+    leader = sig[0]
+
+    def beats(a: EffectScore, b: EffectScore) -> bool:
+        return dec.rank_evidence(sc.parts(fits[a.law], fits[b.law]).gains).passes()
+
+    admissible = [o for i, o in enumerate(sig) if i == 0 or not any(beats(a, o) for a in sig[:i])]
+    best = min(admissible, key=lambda o: (_n_free(fits[o.law]), sig.index(o)))
+    if best is leader:
+        return leader.effect, ""
+    return best.effect, (
+        f"{best.effect} named before {leader.effect} (larger held-out gain): it has fewer fitted "
+        f"parameters ({_n_free(fits[best.law])} against {_n_free(fits[leader.law])}) and no "
+        f"significant effect ranked above it beats it on the held-out blocks (parsimony)")
+
+
 def _monotone_amplitude(data) -> bool:
     if not hasattr(data, "disp"):
         return False
@@ -592,6 +627,10 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
         tied: list[str] = []
         if sig:
             diagnosis = sig[0].effect
+            if sc.holdout:
+                diagnosis, why = _parsimonious(sc, fits, sig)
+                if why:
+                    notes.append(why)
             if not sc.holdout and _monotone_amplitude(data):
                 win = fits[sig[0].law]
                 for other in sig[1:]:
@@ -614,7 +653,7 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
             steps.append(first)
             final = (first.calibration, first.holdout)
             current = fits[first.law]
-            pool = [s.effect for s in sig[1:]]
+            pool = [s.effect for s in sig if s.effect != diagnosis]
             while combine and pool and len(combination) < max_combination and not stopped:
                 cand = []
                 bar.total = (getattr(bar, "total", 0) or 0) + len(pool)

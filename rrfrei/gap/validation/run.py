@@ -86,10 +86,11 @@ ENGINE_HASH = _source_hash([f for d in ("gap", "laws", "calibration") for f in (
 
 
 FULL = Settings(rate=5.0, draws=50)
-"""The table's settings: 5 Hz (50 samples per 10 s cycle of protocol 1) and 50 draws.  Measured
-on 26 cases of the engine with the nine issue-12 effects, 2 processes, on a 2-core machine with a
-load average of 7-10 (other work): 6.0 s of wall time per case (10 Hz and 100 draws: 11.7 s, the
-same 26 verdicts), so 310 cases take about 31 minutes there, about 15 on 2 cores of its own."""
+"""The table's settings: 5 Hz (50 samples per 10 s cycle of protocol 1) and 50 draws (on 26
+cases, 10 Hz and 100 draws gave the same 26 verdicts at twice the time).  The 310 cases took
+1,176 s of CPU (3.8 s per case, median 3.7 s, max 10.7 s), 13 minutes of wall time in 2
+processes on the shared 2-core machine under a load of about 3 from other work, so about 10
+minutes on 2 cores of its own (docs/gap/validation.md)."""
 REDUCED = FULL
 """The settings of quick runs (the same: a quick run has fewer cases, not a coarser resolution)."""
 
@@ -113,6 +114,7 @@ def run_case(case: Case, settings: Settings = FULL, deadline: float | None = Non
     from rrfrei.gap.diagnose import diagnose_gap
 
     t0 = time.perf_counter()
+    c0 = time.process_time()
     row = {
         "key": case.key,
         "effect": case.effect,
@@ -154,6 +156,7 @@ def run_case(case: Case, settings: Settings = FULL, deadline: float | None = Non
             "verdict": "incomplete",
             "note": f"{type(exc).__name__}: {exc}"[:300],
             "seconds": time.perf_counter() - t0,
+            "cpu": time.process_time() - c0,
         }
     verdict = str(getattr(rep, "verdict", rep.diagnosis))
     b, f = rep.baseline[1], rep.final[1]
@@ -172,15 +175,26 @@ def run_case(case: Case, settings: Settings = FULL, deadline: float | None = Non
         best=rep.ranking[0].effect if rep.ranking else "",
         best_shrink=_shrink(b.systematic, rep.ranking[0].holdout.systematic) if rep.ranking else float("nan"),
         seconds=time.perf_counter() - t0,
+        cpu=time.process_time() - c0,
         note="",
     )
     return row
 
 
 def _init_worker() -> None:
+    """A pool worker: warnings off, and Numba's parallel kernels (the calibration's batched
+    forces, :mod:`rrfrei.calibration._batch`) on one thread, since the table already runs one
+    process per core.  The CMA-ES batches are small (a population of ~12 histories of ~600
+    samples), so a second thread per process only contends: measured on the 2-core machine under
+    load, the baseline's two global searches (:meth:`rrfrei.gap.model.IsolatorModel._base_start`)
+    took 1.0 s of CPU and 1.0 s of wall time on one thread against 2.9 s and 2.2-2.4 s on two, with
+    the same optimum (each history is computed alone: the thread count cannot change a force)."""
     import warnings
 
+    import numba
+
     warnings.simplefilter("ignore")
+    numba.set_num_threads(1)
 
 
 def _read_checkpoint(path: Path, settings: Settings) -> dict[str, dict]:

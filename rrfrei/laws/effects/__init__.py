@@ -40,8 +40,10 @@ Kernels of an effect module
   ``compliance(p, pc, F) -> (x_s, dx_s/dF)``, the element's deformation [m] as an increasing,
   bounded function of the force it carries (``|x_s| < p[pc]``, its travel; travel 0: no
   element, the law bit for bit without it), with ``pc = po + compliance_param``; its state is
-  the effect's last state variable (the element's deformation).  The whole law (inner law and
-  slider) is in series with it (:func:`rrfrei.laws.effects._augment._slack`).
+  the effect's last three state variables: the element's deformation, the total displacement at
+  which it was committed and its rate ``dx_s/du`` there (the predictor of the next step's solve).
+  The whole law (inner law and slider) is in series with it
+  (:func:`rrfrei.laws.effects._augment._slack`).
 """
 
 from __future__ import annotations
@@ -122,11 +124,12 @@ class EffectSpec:
                 f"effect {self.name!r}: a series slider has state_size 1 (its displacement), "
                 f"got {self.state_size}"
             )
-        if self.compliance is not None and (self.apply is None or self.state_size < 1
+        if self.compliance is not None and (self.apply is None or self.state_size < 3
                                             or not 0 <= self.compliance_param < len(self.params)):
             raise ValueError(
                 f"effect {self.name!r}: a slack compliance belongs to an inner effect with at "
-                "least one state variable (its last: the element's deformation) and a travel "
+                "least three state variables (its last three: the element's deformation, the "
+                "displacement it was committed at and its rate there) and a travel "
                 f"parameter among its {len(self.params)}, got compliance_param "
                 f"{self.compliance_param}"
             )
@@ -204,7 +207,7 @@ def compose(base: LawSpec, effect_names: list[str]) -> LawSpec:
     binds["HAS_SLACK"] = eff is not None
     binds["slack_compliance"] = eff.compliance if eff is not None else _neutral.no_compliance
     binds["P_SLACK"] = po + eff.compliance_param if eff is not None else 0
-    binds["S_SLACK"] = so + eff.state_size - 1 if eff is not None else 0
+    binds["S_SLACK"] = so + eff.state_size - 3 if eff is not None else 0
     kernels = specialise.instantiate(TEMPLATE, binds, name)
 
     base_check = base.check

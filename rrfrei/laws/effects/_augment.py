@@ -10,8 +10,9 @@ Slots, bound per augmented law by :func:`rrfrei.laws.effects.compose`:
 * ``HAS_SERIES``, ``series_capacity``, ``P_SERIES``, ``S_SERIES``: the series slider, if any;
 * ``HAS_SLACK``, ``slack_compliance``, ``P_SLACK``, ``S_SLACK``: an inner effect's series
   elastic slack element, if any (:func:`_slack`): its compliance kernel, the offset of its
-  travel parameter (0: rigid, the element is absent) and of its state (the element's
-  deformation, the warm start of its solve).
+  travel parameter (0: rigid, the element is absent) and of its state (three slots: the
+  element's deformation, the total displacement it was committed at, and its rate
+  ``dx_s/du`` there: the first-order predictor that starts the next step's solve).
 
 The offsets are constants of the instance, so the compiled step is as direct as a hand-written
 one: no effect ids, no loop over a code array.
@@ -163,16 +164,19 @@ def _slack(p, sc, u, v, dt, st):
     the force it carries, ``x_s = X(F)`` (``slack_compliance(p, P_SLACK, F) -> (X, dX/dF)``,
     increasing, ``|X| < a`` the travel ``p[P_SLACK]``).  The element's deformation solves
     ``phi(x) = x - X(F_c(u - x)) = 0``, increasing in ``x`` with slope ``1 + X' k_c >= 1`` when
-    the law's tangent ``k_c >= 0``, and bracketed by ``[-a, a]``: Newton from the committed
-    deformation, a bisection step whenever Newton leaves the bracket.  Tangent
-    ``k_c / (1 + k_c X')``.  The law sees the total velocity ``v``."""
+    the law's tangent ``k_c >= 0``, and bracketed by ``[-a, a]``: Newton from the first-order
+    predictor ``x_c + (dx_s/du)_c (u - u_c)`` (the committed deformation, displacement and rate:
+    the element's share ``X' k_c / (1 + X' k_c)`` of a displacement increment), a bisection step
+    whenever Newton leaves the bracket.  The predictor only moves the start: the root and its
+    tolerance are the same, reached in fewer law evaluations.  Tangent ``k_c / (1 + k_c X')``.
+    The law sees the total velocity ``v``."""
     a = p[P_SLACK]
     if a == 0.0:
         return _core(p, sc, u, v, dt, st)
     lo = -a
     hi = a
-    x = min(max(sc[S_SLACK], lo), hi)
-    tol = 1e-13 * a
+    x = min(max(sc[S_SLACK] + sc[S_SLACK + 2] * (u - sc[S_SLACK + 1]), lo), hi)
+    tol = 1e-10 * a
     f = 0.0
     k = 0.0
     dx = 0.0
@@ -196,7 +200,10 @@ def _slack(p, sc, u, v, dt, st):
     else:
         return f, k, -2
     st[S_SLACK] = x
-    return f, k / (1.0 + k * dx), 0
+    st[S_SLACK + 1] = u
+    d = 1.0 + k * dx
+    st[S_SLACK + 2] = k * dx / d if d > 0.0 else 0.0
+    return f, k / d, 0
 
 
 @njit(cache=True)

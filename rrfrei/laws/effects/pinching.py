@@ -53,7 +53,9 @@ elastic and adds no loop area of its own.  ``slack_gap = a = 0`` (the default): 
 band kernel bit for bit.  The diagnosis fits ``a <= 0.5`` of the test's peak displacement and
 ``0.005 <= sigma / F_peak <= 0.5`` (its box) besides the band.
 
-State (3): ``[F_max [kN], u_max [m], x_s [m]]``.
+State (5): ``[F_max [kN], u_max [m], x_s [m], u_c [m], dx_s/du [-]]`` (the last two: the total
+displacement at which ``x_s`` was committed and its rate there, the predictor of the series
+solve).
 """
 
 import math
@@ -142,6 +144,6 @@ EFFECT = register_effect(EffectSpec(
      ParamSpec("slack_force", "kN", 1e-9, 1e9,
                "force width sigma over which the series slack is taken up",
                Prior("halfnormal", 1.0), default=1.0)),
-    3, "pinching: slack near zero force (BWBN), where the loop crosses a line through the origin",
+    5, "pinching: slack near zero force (BWBN), where the loop crosses a line through the origin",
     (0.0, 0.5, 0.0, 0.0, 1.0), apply=apply, hints=HINTS, compliance=compliance,
     compliance_param=3))
