@@ -47,3 +47,32 @@ def commit(sc, st):
     """Copy the trial state into the committed state."""
     for k in range(sc.shape[0]):
         sc[k] = st[k]
+
+
+@njit(cache=True, inline="always")
+def store_plan(f, k, f0, f1, k00, k01, k10, k11):
+    """Write a plan step's shear forces ``f`` [kN] and 2 x 2 tangent ``k`` [kN/m], once each, at
+    the step's single exit (a step that loads its arrays, computes on scalars and stores once lets
+    Numba pair every array argument's reference count: ``rrfrei.laws.plan.bouc_wen``)."""
+    f[0] = f0
+    f[1] = f1
+    k[0, 0] = k00
+    k[0, 1] = k01
+    k[1, 0] = k10
+    k[1, 1] = k11
+
+
+@njit(cache=True, inline="always")
+def store_plan_state(st, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11):
+    """Write the first ten trial-state entries shared by the plan Bouc-Wen-type steps: trial
+    displacement [m], hysteretic z [-], force [kN] and tangent offset [kN/m] (row-major)."""
+    st[0] = u0
+    st[1] = u1
+    st[2] = z0
+    st[3] = z1
+    st[4] = q0
+    st[5] = q1
+    st[6] = e00
+    st[7] = e01
+    st[8] = e10
+    st[9] = e11

@@ -116,7 +116,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from rrfrei.laws._util import powabs, sgn
+from rrfrei.laws._util import powabs, sgn, store_plan, store_plan_state
 from rrfrei.laws.plan.registry import PlanLawSpec, register
 
 A = 1.0
@@ -428,16 +428,7 @@ def step(p, sc, u, v, dt, st, f, k):
             e01 = k01
             e10 = k10
             e11 = k11 - kini
-    st[0] = u0
-    st[1] = u1
-    st[2] = z0
-    st[3] = z1
-    st[4] = q0
-    st[5] = q1
-    st[6] = e00
-    st[7] = e01
-    st[8] = e10
-    st[9] = e11
+    store_plan_state(st, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11)
     st[SETTLED] = settled
     st[POW] = pv
     st[POW + 1] = pz0
@@ -447,12 +438,7 @@ def step(p, sc, u, v, dt, st, f, k):
     st[POW + 5] = ppw4
     st[POW + 6] = pc0
     st[POW + 7] = pc1
-    f[0] = f0
-    f[1] = f1
-    k[0, 0] = k00
-    k[0, 1] = k01
-    k[1, 0] = k10
-    k[1, 1] = k11
+    store_plan(f, k, f0, f1, k00, k01, k10, k11)
     return status
 
 

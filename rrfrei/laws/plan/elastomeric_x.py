@@ -74,7 +74,7 @@ import math
 
 from numba import njit
 
-from rrfrei.laws._util import sgn
+from rrfrei.laws._util import sgn, store_plan, store_plan_state
 from rrfrei.laws.elastomeric_x import (
     BETA_CONST,
     DBL_EPSILON,
@@ -185,22 +185,8 @@ def step(p, sc, u, v, dt, st, f, k):
             s7 = k01
             s8 = k10
             s9 = k11 - kinit
-    st[0] = u0
-    st[1] = u1
-    st[2] = z1
-    st[3] = z2
-    st[4] = s4
-    st[5] = s5
-    st[6] = s6
-    st[7] = s7
-    st[8] = s8
-    st[9] = s9
-    f[0] = f0
-    f[1] = f1_
-    k[0, 0] = k00
-    k[0, 1] = k01
-    k[1, 0] = k10
-    k[1, 1] = k11
+    store_plan_state(st, u0, u1, z1, z2, s4, s5, s6, s7, s8, s9)
+    store_plan(f, k, f0, f1_, k00, k01, k10, k11)
     return status
 
 

@@ -40,7 +40,7 @@ import math
 
 from numba import njit
 
-from rrfrei.laws._util import powabs, sgn
+from rrfrei.laws._util import powabs, sgn, store_plan
 from rrfrei.laws.plan.registry import PlanLawSpec, register
 
 
@@ -95,12 +95,7 @@ def step(p, sc, u, v, dt, st, f, k):
         k11 = c * q0 * q0 / d + k2 + g1
     st[0] = t0
     st[1] = t1
-    f[0] = f0
-    f[1] = f1
-    k[0, 0] = k00
-    k[0, 1] = k01
-    k[1, 0] = k01
-    k[1, 1] = k11
+    store_plan(f, k, f0, f1, k00, k01, k01, k11)
     return 0
 
 
