@@ -47,8 +47,8 @@ print(json.dumps({"simulate": float(f[-1]), "base_step": float(fs), "batch": flo
                   "loglik": float(prob.log_likelihood(theta)[0]), "cache": _jit_cache.CACHE_DIR}))
 """
 
-EDIT_FROM = "        return q_tr + k2 * u + nl_f, k0 + k2 + nl_k, 0\n"
-EDIT_TO = "        return 2.0 * (q_tr + k2 * u + nl_f), k0 + k2 + nl_k, 0\n"
+EDIT_FROM = "        f = q_tr + k2 * u + nl_f\n"
+EDIT_TO = "        f = 2.0 * (q_tr + k2 * u + nl_f)\n"
 
 
 def _run(tree: Path, law: str = "plasticity") -> dict:
