@@ -2,10 +2,8 @@
 only creeps is stopped, a start cut after its screen continues only while it can still win."""
 
 import numpy as np
-import pytest
 from scipy.optimize import least_squares
 
-from rrfrei.gap import model as gm
 from rrfrei.gap.model import STALL_ITERATIONS, STALL_REL, _Guard, _worth_continuing
 
 
@@ -48,7 +46,6 @@ def test_a_cut_start_continues_when_it_leads_or_descends_fast_enough_to_lead():
     assert _worth_continuing(steep, lead=0.5)
 
 
-@pytest.mark.skipif(not gm._HAS_CALLBACK, reason="scipy < 1.16: least_squares has no callback")
 def test_the_guard_stops_a_real_creeping_least_squares_and_keeps_its_point():
     # Rosenbrock's valley from a far start: trust-region steps creep along the banana
     def r(x):
@@ -57,7 +54,7 @@ def test_the_guard_stops_a_real_creeping_least_squares_and_keeps_its_point():
     x0 = np.array([-1.9, 2.0])
     free = least_squares(r, x0, method="trf", diff_step=1e-6, max_nfev=5000)
     g = _Guard(3)
-    cut = least_squares(r, x0, method="trf", diff_step=1e-6, max_nfev=5000, **g.kwargs())
+    cut = least_squares(r, x0, method="trf", diff_step=1e-6, max_nfev=5000, callback=g)
     assert g.cut and cut.status == -2 and cut.nfev < free.nfev
     assert np.isclose(cut.cost, 0.5 * float(cut.fun @ cut.fun))
     assert cut.jac.shape == (3, 2) and cut.cost >= free.cost

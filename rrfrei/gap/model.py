@@ -37,7 +37,6 @@ systematic misfit barely changes between samples while white noise does.
 from __future__ import annotations
 
 import hashlib
-import inspect
 import json
 import math
 import weakref
@@ -511,14 +510,18 @@ class IsolatorModel(GapModel):
         # (:func:`_worth_continuing`), so starts that creep far above the others' optimum do not
         # run to max_nfev
         max_nfev = 200 * max(len(free), 1)
+
+        def search(x0, nfev, guard):
+            return least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0,
+                                 max_nfev=nfev, diff_step=1e-6, callback=guard)
+
         runs = []
         for s0 in starts:
             x0 = np.array([(s0[n] if n in s0 else p0[idx[n]]) for n in free]) / s_vec
             x0 = np.clip(x0, lb + 1e-9 * (ub - lb), ub - 1e-9 * (ub - lb))
             guard = _Guard(SCREEN_ITERATIONS)
             try:
-                res = least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0,
-                                    max_nfev=max_nfev, diff_step=1e-6, **guard.kwargs())
+                res = search(x0, max_nfev, guard)
             except ValueError:
                 continue
             runs.append((res, guard))
@@ -528,9 +531,7 @@ class IsolatorModel(GapModel):
                 res, guard = runs[i]
                 if guard.cut and _worth_continuing(guard.costs, lead):
                     try:
-                        more = least_squares(resid, res.x, bounds=(lb, ub), method="trf", x_scale=1.0,
-                                             max_nfev=max(max_nfev - res.nfev, 1), diff_step=1e-6,
-                                             **_Guard(None).kwargs())
+                        more = search(res.x, max(max_nfev - res.nfev, 1), _Guard(None))
                     except ValueError:
                         continue
                     if more.cost <= res.cost:
@@ -593,11 +594,8 @@ class IsolatorModel(GapModel):
                            free=free, seed=seed, note=note)
 
 
-_HAS_CALLBACK = "callback" in inspect.signature(least_squares).parameters
-
-
 class _Guard:
-    """``least_squares`` keyword arguments (``callback``) that end a start early.
+    """``least_squares`` ``callback`` (scipy >= 1.16, required) that ends a start early.
 
     * stall: once the cost ``C_i`` at iteration ``i`` satisfies ``C_(i-W) - C_i < STALL_REL C_i``
       (``W`` = :data:`STALL_ITERATIONS`) the search ends at its current point (status -2: ``x``,
@@ -611,8 +609,6 @@ class _Guard:
       0.95 against 1.00), hence 1e-4;
     * cut: after ``cut`` iterations (None: never) the search ends and :attr:`cut` is True (the
       multi-start screen of :meth:`IsolatorModel.fit`; :func:`_worth_continuing` decides).
-
-    Without ``callback`` (scipy < 1.16) there is no guard: every start runs to ``max_nfev``.
     """
 
     def __init__(self, cut: int | None) -> None:
@@ -629,9 +625,6 @@ class _Guard:
         if self.limit is not None and len(c) >= self.limit:
             self.cut = True
             raise StopIteration
-
-    def kwargs(self) -> dict:
-        return {"callback": self} if _HAS_CALLBACK else {}
 
 
 def _worth_continuing(costs: Sequence[float], lead: float) -> bool:
