@@ -130,6 +130,26 @@ def test_an_unknown_run_exits_2_naming_it(capsys, tmp_path):
     assert code == 2 and "NO_SUCH_RUN" in err and "\n" not in err
 
 
+def test_a_calibration_run_without_a_superstructure_exits_2_before_any_isolator_fit(split, capsys,
+                                                                                    monkeypatch):
+    """The superstructure is identified first: a run where it cannot be (here a 25 Hz copy, too
+    slow for its 1-15 Hz band) is reported in seconds, not after minutes of isolator fits."""
+    root, a, _ = split
+    slow = replace(a.decimate(25.0), name="ICA50slow")
+    write_run(slow, root / "ICA50slow.csv.gz")
+
+    def no_fit(*args, **kw):
+        raise AssertionError("an isolator was fitted before the superstructure was checked")
+
+    monkeypatch.setattr(stg, "_pick_law", no_fit)
+    monkeypatch.setattr(stg, "diagnose", no_fit)
+    code = cli.main(["shake-table", str(root / "ICA50slow.csv.gz"), "--calibrate", "ICA50slow",
+                     "--holdout", "", "--rate", "25", "--no-progress", "--out", str(root / "slow")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert "superstructure not identified on ICA50slow" in err and "--building" in err
+
+
 def test_every_building_analysis_failing_exits_1_and_says_what_and_where(split, capsys, monkeypatch):
     root, _, _ = split
 
