@@ -262,55 +262,25 @@ def _same(a, b):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def step(p, sc, u, v, dt, st, f, k):
-    """Plan Bouc-Wen step (module docstring): forces ``f`` [kN], tangent ``k`` [kN/m], trial
-    state ``st``; status 0, -1 (zero Jacobian diagonal) or -2 (no convergence in 25).
+def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
+           z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4, pc0, pc1,
+           f0, f1, k00, k01, k10, k11):
+    """One ``update()`` of the element on scalars: state in, state out (module docstring).
 
-    Written as load, compute on scalars, store (every output entry written once, at the end,
-    the previous values where a path leaves one unchanged): an array touched in several branches
-    made Numba keep an atomic incref and decref of four array arguments per call (its
-    reference-count pruning could not pair them; ``perf`` put 15-18% of the samples in
-    ``NRT_incref``/``NRT_decref``).  ``forceinline``: LLVM inlines it into its callers (the
-    history driver, the plan building), which saves the call of seven array arguments, 6-8% of
-    a step, without compiling it again (Numba's ``inline="always"`` did the same at the IR level
-    and took 2.3-5.6 s more to compile the driver)."""
-    k_init = p[0]
-    qd = p[1]
-    k0 = (1.0 - p[2]) * k_init
-    k2 = p[2] * k_init
-    k3 = p[3] * k_init
-    mu = p[4]
-    eta = p[5]
-    beta = p[6]
-    gamma = p[7]
-    u0 = u[0]
-    u1 = u[1]
-    du0 = u0 - sc[0]
-    du1 = u1 - sc[1]
-    zc0 = sc[2]
-    zc1 = sc[3]
-    z0 = st[2]
-    z1 = st[3]
-    q0 = st[4]
-    q1 = st[5]
-    e00 = st[6]
-    e01 = st[7]
-    e10 = st[8]
-    e11 = st[9]
-    pv = st[POW]
-    pz0 = st[POW + 1]
-    pz1 = st[POW + 2]
-    peta = st[POW + 3]
-    ppw2 = st[POW + 4]
-    ppw4 = st[POW + 5]
-    pc0 = st[POW + 6]
-    pc1 = st[POW + 7]
-    f0 = f[0]
-    f1 = f[1]
-    k00 = k[0, 0]
-    k01 = k[0, 1]
-    k10 = k[1, 0]
-    k11 = k[1, 1]
+    In: the stiffnesses k0 = (1 - alpha1) k_init, k2 = alpha1 k_init, k3 = alpha2 k_init
+    [kN/m], qd [kN], mu, eta, beta, gamma; the trial displacement (u0, u1) [m]; the committed
+    displacement (uc0, uc1) and z (zc0, zc1); the trial state entries [2:10] and [11:19] on entry
+    (z, q, tangent offset e, powers cache); the forces and tangent of the previous call, returned
+    unchanged on a failure (status < 0).
+
+    Out: ``(status, settled, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2,
+    ppw4, pc0, pc1, f0, f1, k00, k01, k10, k11)``: the status (0, -1, -2), the new trial state
+    entries [10], [2:10], [11:19] (entries [0:2] are (u0, u1)), the forces [kN] and the tangent
+    [kN/m] (row-major).  Written once for :func:`step` (arrays, the plan building) and the
+    history driver :func:`drive` (scalars carried through the time loop); ``forceinline``:
+    LLVM inlines it into both, so the tuple costs nothing."""
+    du0 = u0 - uc0
+    du1 = u1 - uc1
     kini = A * k0 + k2
     status = 0
     settled = 1.0
@@ -428,6 +398,31 @@ def step(p, sc, u, v, dt, st, f, k):
             e01 = k01
             e10 = k10
             e11 = k11 - kini
+    return (status, settled, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2,
+            ppw4, pc0, pc1, f0, f1, k00, k01, k10, k11)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def step(p, sc, u, v, dt, st, f, k):
+    """Plan Bouc-Wen step (module docstring): forces ``f`` [kN], tangent ``k`` [kN/m], trial
+    state ``st``; status 0, -1 (zero Jacobian diagonal) or -2 (no convergence in 25).
+
+    Load, :func:`update` on scalars, store (every output entry written once, at the end): an
+    array touched in several branches made Numba keep an atomic incref and decref of four array
+    arguments per call (its reference-count pruning could not pair them; ``perf`` put 15-18% of
+    the samples in ``NRT_incref``/``NRT_decref``).  ``forceinline``: LLVM inlines it into its
+    callers (the plan building), which saves the call of seven array arguments, 6-8% of a step,
+    without compiling it again (Numba's ``inline="always"`` did the same at the IR level and
+    took 2.3-5.6 s more to compile the driver)."""
+    k_init = p[0]
+    u0 = u[0]
+    u1 = u[1]
+    (status, settled, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4, pc0,
+     pc1, f0, f1, k00, k01, k10, k11) = update(
+        (1.0 - p[2]) * k_init, p[2] * k_init, p[3] * k_init, p[1], p[4], p[5], p[6], p[7],
+        u0, u1, sc[0], sc[1], sc[2], sc[3], st[2], st[3], st[4], st[5], st[6], st[7], st[8],
+        st[9], st[POW], st[POW + 1], st[POW + 2], st[POW + 3], st[POW + 4], st[POW + 5],
+        st[POW + 6], st[POW + 7], f[0], f[1], k[0, 0], k[0, 1], k[1, 0], k[1, 1])
     store_plan_state(st, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11)
     st[SETTLED] = settled
     st[POW] = pv
@@ -442,6 +437,139 @@ def step(p, sc, u, v, dt, st, f, k):
     return status
 
 
+@njit(cache=True, inline="always")
+def _store_state(s, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11, settled, pv, pz0, pz1, peta,
+                 ppw2, ppw4, pc0, pc1):
+    """Write the 19 state entries (module docstring) into ``s``."""
+    store_plan_state(s, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11)
+    s[SETTLED] = settled
+    s[POW] = pv
+    s[POW + 1] = pz0
+    s[POW + 2] = pz1
+    s[POW + 3] = peta
+    s[POW + 4] = ppw2
+    s[POW + 5] = ppw4
+    s[POW + 6] = pc0
+    s[POW + 7] = pc1
+
+
+@njit(cache=True, error_model="numpy")
+def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
+    """bouc_wen's whole-history driver (``PlanLawSpec.history``): the generic plan driver
+    :func:`rrfrei.laws.plan._history.drive`, same contract and same bits (forces, tangents,
+    status, failure sample, and the committed and trial state left in ``sc`` and ``st``), with
+    the state carried through the time loop in local scalars.
+
+    Each step calls :func:`update` from the committed state, and a second time from the first
+    call's trial state unless the first one flags itself settled (OpenSees' two ``update()``
+    calls, :mod:`rrfrei.laws.plan._history`); committing is renaming the trial scalars, and
+    only the forces and tangent are stored per step.  ``sc`` and ``st`` are read on entry and
+    written on exit: where the state lives in arrays that may alias the outputs, LLVM must load
+    and store all 19 entries around every call (step entry and exit, commit: about a tenth of a
+    step).  The contract's "both the initial state on entry" is checked (ValueError otherwise):
+    the trial and committed state are then one set of scalars at each step's start.  ``time``
+    is not used (the law has no rate term), nor is ``use_time``.
+    """
+    for a in range(sc.shape[0]):
+        if not _same(sc[a], st[a]):
+            raise ValueError("bouc_wen plan driver: sc and st must both hold the initial state "
+                             "on entry (the trial state equal to the committed one)")
+    k_init = p[0]
+    k0 = (1.0 - p[2]) * k_init
+    k2 = p[2] * k_init
+    k3 = p[3] * k_init
+    qd = p[1]
+    mu = p[4]
+    eta = p[5]
+    beta = p[6]
+    gamma = p[7]
+    uc0 = st[0]
+    uc1 = st[1]
+    zc0 = st[2]
+    zc1 = st[3]
+    qc0 = st[4]
+    qc1 = st[5]
+    ec00 = st[6]
+    ec01 = st[7]
+    ec10 = st[8]
+    ec11 = st[9]
+    sdc = st[SETTLED]
+    pvc = st[POW]
+    pzc0 = st[POW + 1]
+    pzc1 = st[POW + 2]
+    petac = st[POW + 3]
+    ppw2c = st[POW + 4]
+    ppw4c = st[POW + 5]
+    pc0c = st[POW + 6]
+    pc1c = st[POW + 7]
+    up0 = 0.0
+    up1 = 0.0
+    for i in range(disp.shape[0]):
+        x0 = disp[i, 0]
+        x1 = disp[i, 1]
+        dp0 = (x0 - up0) / substeps
+        dp1 = (x1 - up1) / substeps
+        f0 = f1 = k00 = k01 = k10 = k11 = 0.0
+        for j in range(substeps):
+            u0 = x0
+            u1 = x1
+            if j != substeps - 1:
+                u0 = up0 + dp0 * (j + 1)
+                u1 = up1 + dp1 * (j + 1)
+            (status, sd, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4, pc0,
+             pc1, f0, f1, k00, k01, k10, k11) = update(
+                k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
+                zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, pvc, pzc0, pzc1, petac, ppw2c,
+                ppw4c, pc0c, pc1c, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            if status == 0 and sd == 0.0:  # OpenSees' second update() of the step
+                (status, sd, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4,
+                 pc0, pc1, f0, f1, k00, k01, k10, k11) = update(
+                    k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
+                    z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4, pc0,
+                    pc1, f0, f1, k00, k01, k10, k11)
+            # f and k finite: x * 0 is 0 for every finite x, NaN for an infinity or NaN
+            bad = status == 0 and not (f0 * 0.0 + f1 * 0.0 + k00 * 0.0 + k01 * 0.0 + k10 * 0.0
+                                       + k11 * 0.0 == 0.0)
+            if status != 0 or bad:
+                _store_state(sc, uc0, uc1, zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, sdc, pvc,
+                             pzc0, pzc1, petac, ppw2c, ppw4c, pc0c, pc1c)
+                _store_state(st, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11, sd, pv, pz0, pz1,
+                             peta, ppw2, ppw4, pc0, pc1)
+                return (status if status != 0 else -3), i
+            uc0 = u0  # commit
+            uc1 = u1
+            zc0 = z0
+            zc1 = z1
+            qc0 = q0
+            qc1 = q1
+            ec00 = e00
+            ec01 = e01
+            ec10 = e10
+            ec11 = e11
+            sdc = sd
+            pvc = pv
+            pzc0 = pz0
+            pzc1 = pz1
+            petac = peta
+            ppw2c = ppw2
+            ppw4c = ppw4
+            pc0c = pc0
+            pc1c = pc1
+        force[i, 0] = f0
+        force[i, 1] = f1
+        tangent[i, 0, 0] = k00
+        tangent[i, 0, 1] = k01
+        tangent[i, 1, 0] = k10
+        tangent[i, 1, 1] = k11
+        up0 = x0
+        up1 = x1
+    _store_state(sc, uc0, uc1, zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, sdc, pvc, pzc0, pzc1,
+                 petac, ppw2c, ppw4c, pc0c, pc1c)
+    _store_state(st, uc0, uc1, zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, sdc, pvc, pzc0, pzc1,
+                 petac, ppw2c, ppw4c, pc0c, pc1c)
+    return 0, -1
+
+
 SPEC = register(
     PlanLawSpec(
         name="bouc_wen",
@@ -452,5 +580,6 @@ SPEC = register(
         opensees_element="elastomericBearingBoucWen",
         static_calls=2,
         settled_index=SETTLED,
+        history=drive,
     )
 )

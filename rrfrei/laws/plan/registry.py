@@ -55,6 +55,11 @@ class PlanLawSpec:
         provably return the same trial state, force and tangent (e.g. its last local iteration
         left z bit for bit unchanged), else 0.0; the history driver then skips that call.  -1:
         always call twice.
+    history : optional, the law's own whole-history driver (jitted, the contract of
+        :func:`rrfrei.laws.plan._history.drive`, with the same results as the generic driver
+        bound to ``step``, bit for bit), used by :func:`driver` in its place; ``None``: the
+        generic template.  A law writes one to carry its state through the time loop in local
+        scalars (``rrfrei.laws.plan.bouc_wen.drive``).
     """
 
     name: str
@@ -65,6 +70,7 @@ class PlanLawSpec:
     initial_state: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
     static_calls: int = 1
     settled_index: int = -1
+    history: Callable | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.static_calls not in (1, 2):
@@ -150,9 +156,18 @@ _DRIVERS: dict[str, tuple[PlanLawSpec, Callable]] = {}
 
 
 def driver(spec: PlanLawSpec) -> Callable:
-    """The law's whole-history driver (jitted), the instance of :data:`HISTORY` bound to its
-    step: ``drive(p, sc, st, disp, time, use_time, substeps, force, tangent) -> (status, index)``.
+    """The law's whole-history driver (jitted): ``PlanLawSpec.history`` where the law has one,
+    else the instance of :data:`HISTORY` bound to its step (:func:`generic_driver`):
+    ``drive(p, sc, st, disp, time, use_time, substeps, force, tangent) -> (status, index)``.
     """
+    if spec.history is not None:
+        return spec.history
+    return generic_driver(spec)
+
+
+def generic_driver(spec: PlanLawSpec) -> Callable:
+    """The instance of :data:`HISTORY` bound to the law's step (whatever ``spec.history``): the
+    reference a law's own driver must equal bit for bit."""
     from rrfrei.laws.specialise import instantiate
 
     hit = _DRIVERS.get(spec.name)
