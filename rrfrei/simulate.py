@@ -203,9 +203,8 @@ def as_plan_history(values, name: str = "disp") -> np.ndarray:
         raise ValueError(f"{name} must be an (n, 2) array of numbers, got {type(values).__name__}") from None
     if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 1:
         raise ValueError(f"{name} must be an (n, 2) array (x, y per sample) [m], got shape {arr.shape}")
-    bad = np.argwhere(~np.isfinite(arr))
-    if bad.size:
-        i, a = bad[0]
+    if not np.isfinite(arr).all():  # (argwhere only then: it takes 10x the test's time)
+        i, a = np.argwhere(~np.isfinite(arr))[0]
         raise ValueError(f"{name} is not finite at sample {i}, component {'xy'[a]} (value {arr[i, a]})")
     return np.ascontiguousarray(arr)
 
