@@ -203,6 +203,77 @@ def test_bouc_wen_forces_equal_opensees_bit_for_bit(ops):
     assert np.array_equal(f, f_os), f"{np.sum(np.any(f != f_os, axis=1))} samples differ"
 
 
+def _drive(drive, p, disp, substeps):
+    """Run a plan driver from the virgin state: (status, index, force, tangent, sc, st)."""
+    sc = np.zeros(plan.get("bouc_wen").state_size)
+    st_ = sc.copy()
+    n = disp.shape[0]
+    force = np.full((n, 2), np.nan)
+    tangent = np.full((n, 2, 2), np.nan)
+    status, index = drive(p, sc, st_, disp, np.zeros(n), False, substeps, force, tangent)
+    return int(status), int(index), force, tangent, sc, st_
+
+
+def _same_bits(a, b):
+    """Bit for bit, every NaN equal to every NaN (their sign and payload depend on operand
+    order inside the compiled code, not on the arithmetic)."""
+    a, b = np.asarray(a), np.asarray(b)
+    na, nb = np.isnan(a), np.isnan(b)
+    return np.array_equal(na, nb) and np.array_equal(a[~na].view(np.int64), b[~nb].view(np.int64))
+
+
+def _assert_bouc_wen_drivers_agree(p_dict, disp, substeps=1):
+    spec = plan.get("bouc_wen")
+    p = spec.law.pack(p_dict)
+    own = _drive(plan.registry.driver(spec), p, disp, substeps)
+    generic = _drive(plan.registry.generic_driver(spec), p, disp, substeps)
+    assert own[:2] == generic[:2], f"status, sample {own[:2]} != {generic[:2]}"
+    for name, a, b in zip(("force", "tangent", "sc", "st"), own[2:], generic[2:]):
+        assert _same_bits(a, b), f"{name} differs: {a} != {b}"
+    return own[0]
+
+
+@pytest.mark.parametrize("path", list(PATHS))
+@given(data=st.data())
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_bouc_wen_own_driver_equals_the_generic_driver(path, data):
+    """bouc_wen's history driver (state in local scalars, both update() calls in one loop) gives
+    the generic plan driver's results with the step: status, failure sample, forces, tangents,
+    and the committed and trial states left behind, bit for bit, with and without substeps."""
+    p = data.draw(bouc_wen_params(), label="params")
+    disp = data.draw(PATHS[path](), label="disp")
+    substeps = data.draw(st.sampled_from([1, 1, 2, 3]), label="substeps")
+    _assert_bouc_wen_drivers_agree(p, disp, substeps)
+
+
+@pytest.mark.parametrize("case", ["newton", "second_call"])
+def test_bouc_wen_own_driver_fails_as_the_generic_driver(case):
+    """The failures: 25 iterations used up in the first update() call, and in the second one
+    (the rounding-borderline case below, where the state left behind holds the first call's
+    force and tangent): same status, sample and states."""
+    if case == "newton":
+        p = dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.0, mu=2.0, eta=9.181247277429936,
+                 beta=0.1979643833210143, gamma=0.28589263260021625)
+        disp, want = np.array([[0.001, 0.0005], [0.002, 0.001], [-0.169674, -0.12]]), -2
+    elif case == "second_call":
+        p = dict(k_init=10**4.5, qd=1.0, alpha1=0.0, alpha2=0.0, mu=1.0, eta=0.375,
+                 beta=0.34375, gamma=1.5078125)
+        disp, want = np.array([[0.0, 0.0], [0.0, -0.00390625]]), -2
+    assert _assert_bouc_wen_drivers_agree(p, disp) == want
+
+
+def test_bouc_wen_own_driver_needs_equal_initial_states():
+    """The driver carries one state through its loop: sc and st must be equal on entry."""
+    spec = plan.get("bouc_wen")
+    sc = np.zeros(spec.state_size)
+    st_ = sc.copy()
+    st_[2] = 0.5
+    disp = np.zeros((2, 2))
+    with pytest.raises(ValueError, match="sc and st must both hold the initial state"):
+        plan.registry.driver(spec)(spec.law.pack(PROTOCOL_PARAMS["bouc_wen"]), sc, st_, disp,
+                                   np.zeros(2), False, 1, np.zeros((2, 2)), np.zeros((2, 2, 2)))
+
+
 def test_bouc_wen_exact_threshold_constants():
     """|dz|^2 >= DZ2_TOL and |du|^2 > DU2_MIN decide exactly as OpenSees' sqrt(.) >= 1e-12 and
     sqrt(.) > DBL_EPSILON: sqrt is correctly rounded and monotone, so checking both sides of

@@ -415,13 +415,13 @@ def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
                 c1 = pc1
                 hit = False
             else:
-                c0 = _cube(z0)  # pow(z0, 3.0), bit for bit
-                c1 = _cube(z1)
                 znrm = math.sqrt(a0 + a1)  # Vector::Norm: sqrt(0 + z0^2 + z1^2), the same double
                 if znrm == 0.0:
                     znrm = DBL_EPSILON
                 pw4 = _pow(znrm, em4)  # (the Jacobian's power first: it is on the critical path)
                 pw2 = _pow(znrm, em2)
+                c0 = _cube(z0)  # pow(z0, 3.0), bit for bit
+                c1 = _cube(z1)
             s0 = z0
             s1 = z1
             tmp1 = z0 * du0 + z1 * du1
