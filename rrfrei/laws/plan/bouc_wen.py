@@ -37,8 +37,9 @@ again from the trial z the first one reached, so it can move z by rounding (a la
 from there) or fail where the first converged: with eta = 0.375 and z driven from 0 to 2633 by
 one step (``test_bouc_wen_rounding_borderline_failure_matches_opensees``) the first call converges
 in 12 iterations and the second oscillates between two doubles 3 ulp apart with |dz| = 1.5e-12
-> tol until iter = 25.  The plan history driver therefore calls this step twice per step
-(``PlanLawSpec.static_calls = 2``, :mod:`rrfrei.laws.plan._history`); the plan building calls it
+> tol until iter = 25.  The plan history driver therefore makes both calls per step (its own
+driver :func:`drive`, equal bit for bit to the generic one of :mod:`rrfrei.laws.plan._history`
+with ``PlanLawSpec.static_calls = 2``, which calls this step twice); the plan building calls it
 once per Newton iteration, as OpenSees' transient analysis does.  The second call is skipped when
 it provably returns the same bits: the first call's last iteration left z bit for bit unchanged
 (state entry 10, ``settled_index``), so the second would repeat that iteration exactly (about 60%
@@ -73,11 +74,15 @@ hundred.
 Speed (what differs from OpenSees' code, with the same values): the two cubes without ``pow``
 (above); the powers reused by the next call (above); pow(|z|, eta-4), which heads the
 iteration's critical path (z -> |z| -> pow -> Jacobian -> the solve's three divisions -> z), is
-called before pow(|z|, eta-2), needed later in the solve; and the step reads its arrays once,
-computes on scalars and writes each output once at its end -- with an array touched in several
-branches Numba kept an atomic incref/decref of four array arguments per call (15-18% of the
-samples of ``perf``) -- and is inlined by LLVM into its callers (``forceinline``).
-``docs/plan_laws.md`` gives where the time of a step goes.
+called before the cubes and pow(|z|, eta-2), needed later in the solve; ``pow`` is glibc's
+``__ieee754_pow`` itself, without the wrappers (:func:`_bind_pow`, same values).  The
+arithmetic is written once, on scalars (:func:`update`: state in, state out, inlined by LLVM);
+:func:`step` loads its arrays, calls it and writes each output once (with an array touched in
+several branches Numba kept an atomic incref/decref of four array arguments per call), and the
+history driver :func:`drive` (``PlanLawSpec.history``) carries the state through the time loop
+in local scalars, runs OpenSees' two calls of a step as one local iteration restarted, and
+computes force and tangent once per step.  ``docs/plan_laws.md`` gives where the time of a step
+goes.
 
 Tangent (l.555-582): with t5 = |z_prev|^(eta-2) s of the last iteration's start point,
 du_x/du_y ratios (0 where du_x du_y = 0)::
@@ -357,7 +362,15 @@ def _finish(k0, k2, k3, qd, mu, kini, u0, u1, z0, z1, tmp5, r12, r21):
 def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
            z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4, pc0, pc1,
            f0, f1, k00, k01, k10, k11, calls):
-    """One ``update()`` of the element on scalars: state in, state out (module docstring).
+    """``calls`` (1 or 2) ``update()`` calls of the element on scalars: state in, state out
+    (module docstring).
+
+    ``calls = 2`` is OpenSees' static step, two calls with the same u from the same committed
+    state: the second one, unless the first is settled, restarts the local iteration from the
+    first call's trial z with its counter reset, i.e. continues the same loop (its powers are
+    fresh: z moved), and the force and tangent are computed once, after it (the first call's
+    are only needed where the second one fails, for the trial state).  The results are those
+    of two calls of :func:`step`, bit for bit (``tests/test_plan_laws_opensees.py``).
 
     In: the stiffnesses k0 = (1 - alpha1) k_init, k2 = alpha1 k_init, k3 = alpha2 k_init
     [kN/m], qd [kN], mu, eta, beta, gamma; the trial displacement (u0, u1) [m]; the committed
@@ -368,9 +381,10 @@ def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
     Out: ``(status, settled, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2,
     ppw4, pc0, pc1, f0, f1, k00, k01, k10, k11)``: the status (0, -1, -2), the new trial state
     entries [10], [2:10], [11:19] (entries [0:2] are (u0, u1)), the forces [kN] and the tangent
-    [kN/m] (row-major).  Written once for :func:`step` (arrays, the plan building) and the
-    history driver :func:`drive` (scalars carried through the time loop); ``forceinline``:
-    LLVM inlines it into both, so the tuple costs nothing."""
+    [kN/m] (row-major).  Written once for :func:`step` (arrays, one call: the plan building)
+    and the history driver :func:`drive` (scalars carried through the time loop, two calls);
+    ``forceinline``: LLVM inlines it into both (``calls`` a constant there), so the tuple costs
+    nothing."""
     du0 = u0 - uc0
     du1 = u1 - uc1
     kini = A * k0 + k2
@@ -418,10 +432,12 @@ def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
                 znrm = math.sqrt(a0 + a1)  # Vector::Norm: sqrt(0 + z0^2 + z1^2), the same double
                 if znrm == 0.0:
                     znrm = DBL_EPSILON
-                pw4 = _pow(znrm, em4)  # (the Jacobian's power first: it is on the critical path)
-                pw2 = _pow(znrm, em2)
+                # the Jacobian's power first (it heads the critical path), then the cubes (also
+                # the Jacobian's), then the residual's power, needed last (in the solve)
+                pw4 = _pow(znrm, em4)
                 c0 = _cube(z0)  # pow(z0, 3.0), bit for bit
                 c1 = _cube(z1)
+                pw2 = _pow(znrm, em2)
             s0 = z0
             s1 = z1
             tmp1 = z0 * du0 + z1 * du1
