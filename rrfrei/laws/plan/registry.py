@@ -21,7 +21,8 @@ Every plan law provides a Numba step kernel (``PlanLawSpec.step``)::
 A driver commits by copying ``st`` into ``sc`` once a step has converged.  Kernels that call a
 plan law (the history driver :mod:`rrfrei.laws.plan._history`, the plan building's Newmark
 integrator) are templates instantiated per law (:mod:`rrfrei.laws.specialise`) with the slot
-``plan_step`` bound to ``PlanLawSpec.step``.
+``plan_step`` bound to ``PlanLawSpec.step``; a law may bring its own whole-history driver
+(``PlanLawSpec.history``, the same results bit for bit), which :func:`driver` then returns.
 """
 
 from __future__ import annotations
