@@ -312,6 +312,63 @@ def test_bouc_wen_skipped_second_call_is_exact(seed):
         assert np.array_equal(fi, f[i]) and np.array_equal(ki, kt[i]), f"sample {i}"
 
 
+def test_bouc_wen_pow_is_libm_pow_bit_for_bit():
+    """The kernel's power (``bouc_wen._pow``: glibc's ``__ieee754_pow`` called without its
+    wrappers where the C library has it, ``pow`` otherwise) returns the values of ``pow`` as
+    Numba's ``x ** y`` and Python's ``math.pow`` call it: 10^6 random arguments (the kernel's
+    |z|^(eta-2), |z|^(eta-4) range, wide magnitudes of both signs, integer exponents) and the
+    special values (zeros, infinities, NaN, subnormals, overflow and underflow), bit for bit
+    (NaN: any NaN)."""
+    import math
+
+    from numba import njit
+
+    from rrfrei.laws.plan import bouc_wen as bw
+
+    @njit
+    def both(xs, ys):
+        ours = np.empty_like(xs)
+        libm = np.empty_like(xs)
+        for i in range(xs.size):
+            ours[i] = bw._pow(xs[i], ys[i])
+            libm[i] = xs[i] ** ys[i]
+        return ours, libm
+
+    rng = np.random.default_rng(5)
+    n = 250_000
+    special = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 5e-324, -5e-324, 2.0 ** -1022, 1.0,
+                        -1.0, 0.5, 2.0, 1.7976931348623157e308, -3.0, 1e-300, 1e300])
+    sx, sy = np.meshgrid(special, np.concatenate([special, [3.0, -3.0, 0.5, -0.5, 2.5, -2.63]]))
+    xs = np.concatenate([
+        10.0 ** rng.uniform(-3.0, 1.0, n),  # |z| in the kernel
+        rng.choice([-1.0, 1.0], n) * 2.0 ** rng.uniform(-1074.0, 1023.0, n),
+        rng.uniform(-4.0, 4.0, 2 * n),
+        sx.ravel(),
+    ])
+    ys = np.concatenate([
+        rng.uniform(0.2, 6.0, n) - rng.choice([2.0, 4.0], n),  # eta - 2, eta - 4
+        rng.uniform(-3.0, 3.0, n),
+        np.where(rng.random(2 * n) < 0.5, rng.integers(-40, 40, 2 * n), rng.uniform(-40, 40, 2 * n)),
+        sy.ravel(),
+    ])
+    ours, libm = both(xs, ys)
+    nan = np.isnan(libm)
+    assert np.array_equal(np.isnan(ours), nan)
+    assert np.array_equal(ours[~nan].view(np.int64), libm[~nan].view(np.int64)), \
+        f"{np.sum(ours[~nan].view(np.int64) != libm[~nan].view(np.int64))} arguments differ"
+    with np.errstate(all="ignore"):
+        ref = []
+        for x, y in zip(xs[:20_000], ys[:20_000]):
+            try:
+                ref.append(math.pow(x, y))
+            except (OverflowError, ValueError):  # Python raises where C returns inf / NaN
+                ref.append(np.nan)
+    ref = np.array(ref)
+    ok = ~np.isnan(ref)
+    assert np.array_equal(ours[:20_000][ok].view(np.int64), ref[ok].view(np.int64))
+    assert bw.POW_ENTRY in ("__pow_finite@GLIBC_2.15", "pow")
+
+
 def test_bouc_wen_cube_is_libm_pow_bit_for_bit():
     """The kernel's z^3 (``bouc_wen._cube``: the exact cube's nearest double where the cube is
     clear of a rounding midpoint, ``pow`` otherwise) is ``pow(z, 3.0)`` of the C library, as
