@@ -183,20 +183,18 @@ def _bind_pow() -> str:
     errno, or calls ``__kernel_standard``, whose POSIX-mode results on overflow, underflow and
     invalid arguments are those ``__ieee754_pow`` already returns (checked over 10^6 random and
     special arguments, bit for bit).  Skipping the wrappers saves about 1.6 ns of the ~12 ns of
-    a call.  Elsewhere (no ``dlvsym``, or no such symbol): the library's ``pow``."""
+    a call.  Elsewhere (no ``dlvsym``, or no such symbol): the C library's ``pow``."""
     name = ctypes.util.find_library("m")
     libm = ctypes.CDLL(name) if name else ctypes.CDLL(None)
     addr = None
-    entry = "pow"
     try:
         dlvsym = ctypes.CDLL(None).dlvsym
-    except AttributeError:
-        dlvsym = None
-    if dlvsym is not None:
         dlvsym.restype = ctypes.c_void_p
         dlvsym.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_char_p]
         addr = dlvsym(libm._handle, b"__pow_finite", b"GLIBC_2.15")
-        entry = "__pow_finite@GLIBC_2.15"
+    except AttributeError:  # not glibc
+        addr = None
+    entry = "__pow_finite@GLIBC_2.15"
     if not addr:
         addr = ctypes.cast(libm.pow, ctypes.c_void_p).value
         entry = "pow"
