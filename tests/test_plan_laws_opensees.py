@@ -33,6 +33,7 @@ from opensees_plan import (
 )
 
 import rrfrei
+from rrfrei.errors import NumericalFailure
 from rrfrei.laws import plan
 
 pytestmark = pytest.mark.opensees
@@ -260,6 +261,34 @@ def test_bouc_wen_own_driver_fails_as_the_generic_driver(case):
                  beta=0.34375, gamma=1.5078125)
         disp, want = np.array([[0.0, 0.0], [0.0, -0.00390625]]), -2
     assert _assert_bouc_wen_drivers_agree(p, disp) == want
+
+
+@pytest.mark.parametrize("law", ["bouc_wen", "plasticity"])
+def test_a_non_finite_plan_sample_is_a_value_error_before_any_step(law):
+    """The drivers (bouc_wen's own, the generic one) scan the history before the first step, so
+    simulate_force still raises the ValueError naming the sample and component, also where the
+    law would fail earlier in the history (here bouc_wen's local Newton at sample 2)."""
+    p = dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.0, mu=2.0, eta=9.181247277429936,
+             beta=0.1979643833210143, gamma=0.28589263260021625)
+    if law == "plasticity":
+        p = {k: p[k] for k in ("k_init", "qd", "alpha1", "alpha2", "mu")}
+    disp = np.array([[0.001, 0.0005], [0.002, 0.001], [-0.169674, -0.12], [0.0, 0.0],
+                     [0.01, 0.0]])
+    if law == "bouc_wen":
+        with pytest.raises(NumericalFailure, match="sample 2"):
+            rrfrei.simulate_force(law, p, disp)
+    for value, comp in ((np.nan, 1), (np.inf, 0), (-np.inf, 1)):
+        bad = disp.copy()
+        bad[3, comp] = value
+        with pytest.raises(ValueError, match=f"disp is not finite at sample 3, component "
+                                             f"{'xy'[comp]}"):
+            rrfrei.simulate_force(law, p, bad)
+    spec = plan.get(law)
+    bad = disp.copy()
+    bad[4, 0] = np.nan
+    for drive in (plan.registry.driver(spec), plan.registry.generic_driver(spec)):
+        status, index, *_ = _drive(drive, spec.law.pack(p), bad, 1)
+        assert (status, index) == (plan.registry.NONFINITE_DISP, 4)
 
 
 def test_bouc_wen_own_driver_needs_equal_initial_states():

@@ -125,7 +125,8 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 from rrfrei.laws._util import powabs, sgn, store_plan, store_plan_state
-from rrfrei.laws.plan.registry import PlanLawSpec, register
+from rrfrei.laws.plan._history import first_nonfinite
+from rrfrei.laws.plan.registry import NONFINITE_DISP, PlanLawSpec, register
 
 A = 1.0
 MAX_ITER = 25
@@ -568,6 +569,9 @@ def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
     the trial and committed state are then one set of scalars at each step's start.  ``time``
     is not used (the law has no rate term), nor is ``use_time``.
     """
+    bad = first_nonfinite(disp)
+    if bad >= 0:
+        return NONFINITE_DISP, bad
     for a in range(sc.shape[0]):
         if not _same(sc[a], st[a]):
             raise ValueError("bouc_wen plan driver: sc and st must both hold the initial state "
