@@ -567,7 +567,8 @@ def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
     and store all 19 entries around every call (step entry and exit, commit: about a tenth of a
     step).  The contract's "both the initial state on entry" is checked (ValueError otherwise):
     the trial and committed state are then one set of scalars at each step's start.  ``time``
-    is not used (the law has no rate term), nor is ``use_time``.
+    is not used (the law has no rate term), nor is ``use_time``.  A non-finite sample of
+    ``disp`` returns ``(NONFINITE_DISP, sample)`` before any step, as the generic driver does.
     """
     bad = first_nonfinite(disp)
     if bad >= 0:
