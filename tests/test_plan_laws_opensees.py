@@ -33,6 +33,7 @@ from opensees_plan import (
 )
 
 import rrfrei
+from rrfrei.errors import NumericalFailure
 from rrfrei.laws import plan
 
 pytestmark = pytest.mark.opensees
@@ -203,6 +204,105 @@ def test_bouc_wen_forces_equal_opensees_bit_for_bit(ops):
     assert np.array_equal(f, f_os), f"{np.sum(np.any(f != f_os, axis=1))} samples differ"
 
 
+def _drive(drive, p, disp, substeps):
+    """Run a plan driver from the virgin state: (status, index, force, tangent, sc, st)."""
+    sc = np.zeros(plan.get("bouc_wen").state_size)
+    st_ = sc.copy()
+    n = disp.shape[0]
+    force = np.full((n, 2), np.nan)
+    tangent = np.full((n, 2, 2), np.nan)
+    status, index = drive(p, sc, st_, disp, np.zeros(n), False, substeps, force, tangent)
+    return int(status), int(index), force, tangent, sc, st_
+
+
+def _same_bits(a, b):
+    """Bit for bit, every NaN equal to every NaN (their sign and payload depend on operand
+    order inside the compiled code, not on the arithmetic)."""
+    a, b = np.asarray(a), np.asarray(b)
+    na, nb = np.isnan(a), np.isnan(b)
+    return np.array_equal(na, nb) and np.array_equal(a[~na].view(np.int64), b[~nb].view(np.int64))
+
+
+def _assert_bouc_wen_drivers_agree(p_dict, disp, substeps=1):
+    spec = plan.get("bouc_wen")
+    p = spec.law.pack(p_dict)
+    own = _drive(plan.registry.driver(spec), p, disp, substeps)
+    generic = _drive(plan.registry.generic_driver(spec), p, disp, substeps)
+    assert own[:2] == generic[:2], f"status, sample {own[:2]} != {generic[:2]}"
+    for name, a, b in zip(("force", "tangent", "sc", "st"), own[2:], generic[2:]):
+        assert _same_bits(a, b), f"{name} differs: {a} != {b}"
+    return own[0]
+
+
+@pytest.mark.parametrize("path", list(PATHS))
+@given(data=st.data())
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_bouc_wen_own_driver_equals_the_generic_driver(path, data):
+    """bouc_wen's history driver (state in local scalars, both update() calls in one loop) gives
+    the generic plan driver's results with the step: status, failure sample, forces, tangents,
+    and the committed and trial states left behind, bit for bit, with and without substeps."""
+    p = data.draw(bouc_wen_params(), label="params")
+    disp = data.draw(PATHS[path](), label="disp")
+    substeps = data.draw(st.sampled_from([1, 1, 2, 3]), label="substeps")
+    _assert_bouc_wen_drivers_agree(p, disp, substeps)
+
+
+@pytest.mark.parametrize("case", ["newton", "second_call"])
+def test_bouc_wen_own_driver_fails_as_the_generic_driver(case):
+    """The failures: 25 iterations used up in the first update() call, and in the second one
+    (the rounding-borderline case below, where the state left behind holds the first call's
+    force and tangent): same status, sample and states."""
+    if case == "newton":
+        p = dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.0, mu=2.0, eta=9.181247277429936,
+                 beta=0.1979643833210143, gamma=0.28589263260021625)
+        disp, want = np.array([[0.001, 0.0005], [0.002, 0.001], [-0.169674, -0.12]]), -2
+    elif case == "second_call":
+        p = dict(k_init=10**4.5, qd=1.0, alpha1=0.0, alpha2=0.0, mu=1.0, eta=0.375,
+                 beta=0.34375, gamma=1.5078125)
+        disp, want = np.array([[0.0, 0.0], [0.0, -0.00390625]]), -2
+    assert _assert_bouc_wen_drivers_agree(p, disp) == want
+
+
+@pytest.mark.parametrize("law", ["bouc_wen", "plasticity"])
+def test_a_non_finite_plan_sample_is_a_value_error_before_any_step(law):
+    """The drivers (bouc_wen's own, the generic one) scan the history before the first step, so
+    simulate_force still raises the ValueError naming the sample and component, also where the
+    law would fail earlier in the history (here bouc_wen's local Newton at sample 2)."""
+    p = dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.0, mu=2.0, eta=9.181247277429936,
+             beta=0.1979643833210143, gamma=0.28589263260021625)
+    if law == "plasticity":
+        p = {k: p[k] for k in ("k_init", "qd", "alpha1", "alpha2", "mu")}
+    disp = np.array([[0.001, 0.0005], [0.002, 0.001], [-0.169674, -0.12], [0.0, 0.0],
+                     [0.01, 0.0]])
+    if law == "bouc_wen":
+        with pytest.raises(NumericalFailure, match="sample 2"):
+            rrfrei.simulate_force(law, p, disp)
+    for value, comp in ((np.nan, 1), (np.inf, 0), (-np.inf, 1)):
+        bad = disp.copy()
+        bad[3, comp] = value
+        with pytest.raises(ValueError, match=f"disp is not finite at sample 3, component "
+                                             f"{'xy'[comp]}"):
+            rrfrei.simulate_force(law, p, bad)
+    spec = plan.get(law)
+    bad = disp.copy()
+    bad[4, 0] = np.nan
+    for drive in (plan.registry.driver(spec), plan.registry.generic_driver(spec)):
+        status, index, *_ = _drive(drive, spec.law.pack(p), bad, 1)
+        assert (status, index) == (plan.registry.NONFINITE_DISP, 4)
+
+
+def test_bouc_wen_own_driver_needs_equal_initial_states():
+    """The driver carries one state through its loop: sc and st must be equal on entry."""
+    spec = plan.get("bouc_wen")
+    sc = np.zeros(spec.state_size)
+    st_ = sc.copy()
+    st_[2] = 0.5
+    disp = np.zeros((2, 2))
+    with pytest.raises(ValueError, match="sc and st must both hold the initial state"):
+        plan.registry.driver(spec)(spec.law.pack(PROTOCOL_PARAMS["bouc_wen"]), sc, st_, disp,
+                                   np.zeros(2), False, 1, np.zeros((2, 2)), np.zeros((2, 2, 2)))
+
+
 def test_bouc_wen_exact_threshold_constants():
     """|dz|^2 >= DZ2_TOL and |du|^2 > DU2_MIN decide exactly as OpenSees' sqrt(.) >= 1e-12 and
     sqrt(.) > DBL_EPSILON: sqrt is correctly rounded and monotone, so checking both sides of
@@ -239,6 +339,63 @@ def test_bouc_wen_skipped_second_call_is_exact(seed):
             assert spec.step(p, sc, disp[i].copy(), v, 1.0, st, fi, ki) == 0
         sc[:] = st
         assert np.array_equal(fi, f[i]) and np.array_equal(ki, kt[i]), f"sample {i}"
+
+
+def test_bouc_wen_pow_is_libm_pow_bit_for_bit():
+    """The kernel's power (``bouc_wen._pow``: glibc's ``__ieee754_pow`` called without its
+    wrappers where the C library has it, ``pow`` otherwise) returns the values of ``pow`` as
+    Numba's ``x ** y`` and Python's ``math.pow`` call it: 10^6 random arguments (the kernel's
+    |z|^(eta-2), |z|^(eta-4) range, wide magnitudes of both signs, integer exponents) and the
+    special values (zeros, infinities, NaN, subnormals, overflow and underflow), bit for bit
+    (NaN: any NaN)."""
+    import math
+
+    from numba import njit
+
+    from rrfrei.laws.plan import bouc_wen as bw
+
+    @njit
+    def both(xs, ys):
+        ours = np.empty_like(xs)
+        libm = np.empty_like(xs)
+        for i in range(xs.size):
+            ours[i] = bw._pow(xs[i], ys[i])
+            libm[i] = xs[i] ** ys[i]
+        return ours, libm
+
+    rng = np.random.default_rng(5)
+    n = 250_000
+    special = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 5e-324, -5e-324, 2.0 ** -1022, 1.0,
+                        -1.0, 0.5, 2.0, 1.7976931348623157e308, -3.0, 1e-300, 1e300])
+    sx, sy = np.meshgrid(special, np.concatenate([special, [3.0, -3.0, 0.5, -0.5, 2.5, -2.63]]))
+    xs = np.concatenate([
+        10.0 ** rng.uniform(-3.0, 1.0, n),  # |z| in the kernel
+        rng.choice([-1.0, 1.0], n) * 2.0 ** rng.uniform(-1074.0, 1023.0, n),
+        rng.uniform(-4.0, 4.0, 2 * n),
+        sx.ravel(),
+    ])
+    ys = np.concatenate([
+        rng.uniform(0.2, 6.0, n) - rng.choice([2.0, 4.0], n),  # eta - 2, eta - 4
+        rng.uniform(-3.0, 3.0, n),
+        np.where(rng.random(2 * n) < 0.5, rng.integers(-40, 40, 2 * n), rng.uniform(-40, 40, 2 * n)),
+        sy.ravel(),
+    ])
+    ours, libm = both(xs, ys)
+    nan = np.isnan(libm)
+    assert np.array_equal(np.isnan(ours), nan)
+    assert np.array_equal(ours[~nan].view(np.int64), libm[~nan].view(np.int64)), \
+        f"{np.sum(ours[~nan].view(np.int64) != libm[~nan].view(np.int64))} arguments differ"
+    with np.errstate(all="ignore"):
+        ref = []
+        for x, y in zip(xs[:20_000], ys[:20_000]):
+            try:
+                ref.append(math.pow(x, y))
+            except (OverflowError, ValueError):  # Python raises where C returns inf / NaN
+                ref.append(np.nan)
+    ref = np.array(ref)
+    ok = ~np.isnan(ref)
+    assert np.array_equal(ours[:20_000][ok].view(np.int64), ref[ok].view(np.int64))
+    assert bw.POW_ENTRY in ("__pow_finite@GLIBC_2.15", "pow")
 
 
 def test_bouc_wen_cube_is_libm_pow_bit_for_bit():

@@ -19,12 +19,29 @@ import numpy as np
 from numba import njit
 
 from rrfrei.laws._util import commit
+from rrfrei.laws.plan.registry import NONFINITE_DISP
 from rrfrei.laws.specialise import unbound
 
 SLOTS = ("plan_step", "plan_static_calls", "plan_settled_index")
 plan_step = unbound("plan_step")
 plan_static_calls = 1  # constants bound per law: Numba folds the branches below
 plan_settled_index = -1
+
+
+@njit(cache=True)
+def first_nonfinite(disp):
+    """Index of the first sample of the (n, 2) history ``disp`` with a non-finite component, or
+    -1.  One pass that LLVM vectorizes (x - x == 0 exactly for finite x: an AND of comparisons),
+    then, only where it fails, the search for the sample."""
+    ok = True
+    for i in range(disp.shape[0]):
+        ok &= (disp[i, 0] - disp[i, 0] == 0.0) & (disp[i, 1] - disp[i, 1] == 0.0)
+    if ok:
+        return -1
+    for i in range(disp.shape[0]):
+        if not (np.isfinite(disp[i, 0]) and np.isfinite(disp[i, 1])):
+            return i
+    return -1
 
 
 @njit(cache=True, error_model="numpy")
@@ -44,8 +61,12 @@ def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
 
     Returns
     -------
-    (status, index) : 0 and -1 on success, else the failing status and sample index.
+    (status, index) : 0 and -1 on success, else the failing status and sample index
+        (``NONFINITE_DISP`` and the first non-finite sample of ``disp``, before any step).
     """
+    bad = first_nonfinite(disp)
+    if bad >= 0:
+        return NONFINITE_DISP, bad
     u = np.zeros(2)
     v = np.zeros(2)
     u_prev = np.zeros(2)

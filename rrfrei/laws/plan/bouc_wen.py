@@ -37,8 +37,9 @@ again from the trial z the first one reached, so it can move z by rounding (a la
 from there) or fail where the first converged: with eta = 0.375 and z driven from 0 to 2633 by
 one step (``test_bouc_wen_rounding_borderline_failure_matches_opensees``) the first call converges
 in 12 iterations and the second oscillates between two doubles 3 ulp apart with |dz| = 1.5e-12
-> tol until iter = 25.  The plan history driver therefore calls this step twice per step
-(``PlanLawSpec.static_calls = 2``, :mod:`rrfrei.laws.plan._history`); the plan building calls it
+> tol until iter = 25.  The plan history driver therefore makes both calls per step (its own
+driver :func:`drive`, equal bit for bit to the generic one of :mod:`rrfrei.laws.plan._history`
+with ``PlanLawSpec.static_calls = 2``, which calls this step twice); the plan building calls it
 once per Newton iteration, as OpenSees' transient analysis does.  The second call is skipped when
 it provably returns the same bits: the first call's last iteration left z bit for bit unchanged
 (state entry 10, ``settled_index``), so the second would repeat that iteration exactly (about 60%
@@ -73,11 +74,15 @@ hundred.
 Speed (what differs from OpenSees' code, with the same values): the two cubes without ``pow``
 (above); the powers reused by the next call (above); pow(|z|, eta-4), which heads the
 iteration's critical path (z -> |z| -> pow -> Jacobian -> the solve's three divisions -> z), is
-called before pow(|z|, eta-2), needed later in the solve; and the step reads its arrays once,
-computes on scalars and writes each output once at its end -- with an array touched in several
-branches Numba kept an atomic incref/decref of four array arguments per call (15-18% of the
-samples of ``perf``) -- and is inlined by LLVM into its callers (``forceinline``).
-``docs/plan_laws.md`` gives where the time of a step goes.
+called before the cubes and pow(|z|, eta-2), needed later in the solve; ``pow`` is glibc's
+``__ieee754_pow`` itself, without the wrappers (:func:`_bind_pow`, same values).  The
+arithmetic is written once, on scalars (:func:`update`: state in, state out, inlined by LLVM);
+:func:`step` loads its arrays, calls it and writes each output once (with an array touched in
+several branches Numba kept an atomic incref/decref of four array arguments per call), and the
+history driver :func:`drive` (``PlanLawSpec.history``) carries the state through the time loop
+in local scalars, runs OpenSees' two calls of a step as one local iteration restarted, and
+computes force and tangent once per step.  ``docs/plan_laws.md`` gives where the time of a step
+goes.
 
 Tangent (l.555-582): with t5 = |z_prev|^(eta-2) s of the last iteration's start point,
 du_x/du_y ratios (0 where du_x du_y = 0)::
@@ -110,14 +115,18 @@ State (float64[19])::
           z_y^3 at that z (the start point of the last local iteration)
 """
 
+import ctypes
+import ctypes.util
 import math
 
+import llvmlite.binding as ll
 from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
 from rrfrei.laws._util import powabs, sgn, store_plan, store_plan_state
-from rrfrei.laws.plan.registry import PlanLawSpec, register
+from rrfrei.laws.plan._history import first_nonfinite
+from rrfrei.laws.plan.registry import NONFINITE_DISP, PlanLawSpec, register
 
 A = 1.0
 MAX_ITER = 25
@@ -159,6 +168,61 @@ CUBE_NEAR_CLOSE = 0.485
 midpoint (84,267 of 1e8 random arguments in [0.01, 4]; 167,296 of 2e8 log-uniform in
 [2^-8, 2^8], all within 0.0087 ulp)."""
 MANTISSA = (1 << 52) - 1
+
+
+POW_SYMBOL = "rrfrei_libm_pow"
+"""The JIT symbol :func:`_pow` calls (bound at import by :func:`_bind_pow`)."""
+
+
+def _bind_pow() -> str:
+    """Bind ``POW_SYMBOL`` to the C library's power function and say which entry it is.
+
+    glibc: ``__pow_finite@GLIBC_2.15``, the IFUNC of ``__ieee754_pow`` itself (resolved to its
+    FMA or SSE2 build), which both ``pow`` entries call: the SVID-compatible wrapper
+    ``pow@GLIBC_2.2.5`` that Numba's ``x ** y`` reaches (through a trampoline of its own) and
+    ``pow@@GLIBC_2.29``.  Their values are the same for every argument: a wrapper only sets
+    errno, or calls ``__kernel_standard``, whose POSIX-mode results on overflow, underflow and
+    invalid arguments are those ``__ieee754_pow`` already returns (checked over 10^6 random and
+    special arguments, bit for bit).  Skipping the wrappers saves about 1.6 ns of the ~12 ns of
+    a call.  Elsewhere (no ``dlvsym``, or no such symbol): the C library's ``pow``."""
+    name = ctypes.util.find_library("m")
+    libm = ctypes.CDLL(name) if name else ctypes.CDLL(None)
+    addr = None
+    try:
+        dlvsym = ctypes.CDLL(None).dlvsym
+        dlvsym.restype = ctypes.c_void_p
+        dlvsym.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_char_p]
+        addr = dlvsym(libm._handle, b"__pow_finite", b"GLIBC_2.15")
+    except AttributeError:  # not glibc
+        addr = None
+    entry = "__pow_finite@GLIBC_2.15"
+    if not addr:
+        addr = ctypes.cast(libm.pow, ctypes.c_void_p).value
+        entry = "pow"
+    ll.add_symbol(POW_SYMBOL, addr)
+    return entry
+
+
+POW_ENTRY = _bind_pow()
+"""Which C library entry :func:`_pow` calls (:func:`_bind_pow`)."""
+
+
+@intrinsic
+def _pow(typingctx, x, y):
+    """x^y as the C library's ``pow`` (``__ieee754_pow`` under glibc, without its wrapper:
+    :func:`_bind_pow`); declared ``readnone nounwind`` as ``llvm.pow`` is."""
+    sig = types.float64(types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        fn = builder.module.globals.get(POW_SYMBOL)
+        if fn is None:
+            fnty = ir.FunctionType(ir.DoubleType(), [ir.DoubleType(), ir.DoubleType()])
+            fn = ir.Function(builder.module, fnty, POW_SYMBOL)
+            fn.attributes.add("nounwind")
+            fn.attributes.add("readnone")
+        return builder.call(fn, args)
+
+    return sig, codegen
 
 
 @intrinsic
@@ -212,7 +276,7 @@ def _cube(z):
     """
     a = abs(z)
     if not (CUBE_MIN <= a <= CUBE_MAX):
-        return z ** 3.0
+        return _pow(z, 3.0)
     s = a * a
     c = s * a
     tail = _fma(s, a, -c) + _fma(a, a, -s) * a
@@ -222,7 +286,7 @@ def _cube(z):
     k = int(t + 1.5) - 1  # the nearest integer to t where it matters (|t - k| <= CUBE_NEAR)
     near = CUBE_NEAR_CLOSE if 1.0 / CUBE_CLOSE <= a <= CUBE_CLOSE else CUBE_NEAR
     if abs(t - k) > near or m < 2 or m > MANTISSA - 2:
-        return z ** 3.0
+        return _pow(z, 3.0)
     return math.copysign(_double(b + k), z)
 
 
@@ -262,55 +326,66 @@ def _same(a, b):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def step(p, sc, u, v, dt, st, f, k):
-    """Plan Bouc-Wen step (module docstring): forces ``f`` [kN], tangent ``k`` [kN/m], trial
-    state ``st``; status 0, -1 (zero Jacobian diagonal) or -2 (no convergence in 25).
+def _finish(k0, k2, k3, qd, mu, kini, u0, u1, z0, z1, tmp5, r12, r21):
+    """Force and tangent after a converged call (OpenSees l.555-582, module docstring), with
+    tmp5 = |z_s|^(eta-2) s of the last iteration's start point z_s: ``(q0, q1, e00, e01, e10,
+    e11, k00, k01, k10, k11)``, the forces [kN], the tangent's offset from A k0 + k2 (``kini``)
+    as stored in the state, and the tangent [kN/m]."""
+    g00 = A - z0 * tmp5 * (z0 + z1 * r21)
+    g01 = (A - z0 * z0 * tmp5) * r12 - z0 * z1 * tmp5
+    g10 = (A - z1 * z1 * tmp5) * r21 - z0 * z1 * tmp5
+    g11 = A - z1 * tmp5 * (z1 + z0 * r12)
+    if abs(g00) > 1.0:
+        g00 = 1.0
+    if abs(g01) > 1.0:
+        g01 = sgn(g01)
+    if abs(g10) > 1.0:
+        g10 = sgn(g10)
+    if abs(g11) > 1.0:
+        g11 = 1.0
+    q0 = qd * z0 + k2 * u0
+    q1 = qd * z1 + k2 * u1
+    k00 = k0 * g00 + k2
+    k11 = k0 * g11 + k2
+    if k3 != 0.0:
+        q0 += k3 * sgn(u0) * powabs(u0, mu)
+        q1 += k3 * sgn(u1) * powabs(u1, mu)
+        k00 += k3 * mu * powabs(u0, mu - 1.0)
+        k11 += k3 * mu * powabs(u1, mu - 1.0)
+    k01 = k0 * g01
+    k10 = k0 * g10
+    return q0, q1, k00 - kini, k01, k10, k11 - kini, k00, k01, k10, k11
 
-    Written as load, compute on scalars, store (every output entry written once, at the end,
-    the previous values where a path leaves one unchanged): an array touched in several branches
-    made Numba keep an atomic incref and decref of four array arguments per call (its
-    reference-count pruning could not pair them; ``perf`` put 15-18% of the samples in
-    ``NRT_incref``/``NRT_decref``).  ``forceinline``: LLVM inlines it into its callers (the
-    history driver, the plan building), which saves the call of seven array arguments, 6-8% of
-    a step, without compiling it again (Numba's ``inline="always"`` did the same at the IR level
-    and took 2.3-5.6 s more to compile the driver)."""
-    k_init = p[0]
-    qd = p[1]
-    k0 = (1.0 - p[2]) * k_init
-    k2 = p[2] * k_init
-    k3 = p[3] * k_init
-    mu = p[4]
-    eta = p[5]
-    beta = p[6]
-    gamma = p[7]
-    u0 = u[0]
-    u1 = u[1]
-    du0 = u0 - sc[0]
-    du1 = u1 - sc[1]
-    zc0 = sc[2]
-    zc1 = sc[3]
-    z0 = st[2]
-    z1 = st[3]
-    q0 = st[4]
-    q1 = st[5]
-    e00 = st[6]
-    e01 = st[7]
-    e10 = st[8]
-    e11 = st[9]
-    pv = st[POW]
-    pz0 = st[POW + 1]
-    pz1 = st[POW + 2]
-    peta = st[POW + 3]
-    ppw2 = st[POW + 4]
-    ppw4 = st[POW + 5]
-    pc0 = st[POW + 6]
-    pc1 = st[POW + 7]
-    f0 = f[0]
-    f1 = f[1]
-    k00 = k[0, 0]
-    k01 = k[0, 1]
-    k10 = k[1, 0]
-    k11 = k[1, 1]
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
+           z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4, pc0, pc1,
+           f0, f1, k00, k01, k10, k11, calls):
+    """``calls`` (1 or 2) ``update()`` calls of the element on scalars: state in, state out
+    (module docstring).
+
+    ``calls = 2`` is OpenSees' static step, two calls with the same u from the same committed
+    state: the second one, unless the first is settled, restarts the local iteration from the
+    first call's trial z with its counter reset, i.e. continues the same loop (its powers are
+    fresh: z moved), and the force and tangent are computed once, after it (the first call's
+    are only needed where the second one fails, for the trial state).  The results are those
+    of two calls of :func:`step`, bit for bit (``tests/test_plan_laws_opensees.py``).
+
+    In: the stiffnesses k0 = (1 - alpha1) k_init, k2 = alpha1 k_init, k3 = alpha2 k_init
+    [kN/m], qd [kN], mu, eta, beta, gamma; the trial displacement (u0, u1) [m]; the committed
+    displacement (uc0, uc1) and z (zc0, zc1); the trial state entries [2:10] and [11:19] on entry
+    (z, q, tangent offset e, powers cache); the forces and tangent of the previous call, returned
+    unchanged on a failure (status < 0).
+
+    Out: ``(status, settled, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2,
+    ppw4, pc0, pc1, f0, f1, k00, k01, k10, k11)``: the status (0, -1, -2), the new trial state
+    entries [10], [2:10], [11:19] (entries [0:2] are (u0, u1)), the forces [kN] and the tangent
+    [kN/m] (row-major).  Written once for :func:`step` (arrays, one call: the plan building)
+    and the history driver :func:`drive` (scalars carried through the time loop, two calls);
+    ``forceinline``: LLVM inlines it into both (``calls`` a constant there), so the tuple costs
+    nothing."""
+    du0 = u0 - uc0
+    du1 = u1 - uc1
     kini = A * k0 + k2
     status = 0
     settled = 1.0
@@ -334,6 +409,8 @@ def step(p, sc, u, v, dt, st, f, k):
             r12 = 0.0
             r21 = 0.0
         it = 0
+        call = 1
+        fz0 = fz1 = fpw2 = ftmp2 = 0.0
         same = False
         tmp2 = 0.0
         pw2 = pw4 = c0 = c1 = 0.0
@@ -351,13 +428,15 @@ def step(p, sc, u, v, dt, st, f, k):
                 c1 = pc1
                 hit = False
             else:
-                c0 = _cube(z0)  # pow(z0, 3.0), bit for bit
-                c1 = _cube(z1)
                 znrm = math.sqrt(a0 + a1)  # Vector::Norm: sqrt(0 + z0^2 + z1^2), the same double
                 if znrm == 0.0:
                     znrm = DBL_EPSILON
-                pw4 = znrm ** em4  # (the Jacobian's power first: it is on the critical path)
-                pw2 = znrm ** em2
+                # the Jacobian's power first (it heads the critical path), then the cubes (also
+                # the Jacobian's), then the residual's power, needed last (in the solve)
+                pw4 = _pow(znrm, em4)
+                c0 = _cube(z0)  # pow(z0, 3.0), bit for bit
+                c1 = _cube(z1)
+                pw2 = _pow(znrm, em2)
             s0 = z0
             s1 = z1
             tmp1 = z0 * du0 + z1 * du1
@@ -382,52 +461,67 @@ def step(p, sc, u, v, dt, st, f, k):
             z1 = n1
             it += 1
             if not (dz0 * dz0 + dz1 * dz1 >= DZ2_TOL and it < MAX_ITER):  # |dz| >= tol, exactly
-                break
-        if status == 0:
-            # the powers at the last iteration's start point (z itself when settled)
-            pv = 1.0
-            pz0 = s0
-            pz1 = s1
-            peta = eta
-            ppw2 = pw2
-            ppw4 = pw4
-            pc0 = c0
-            pc1 = c1
-            if it >= MAX_ITER:
-                status = -2
+                # end of an update() call: the powers at its last iteration's start point (z
+                # itself when settled)
+                pv = 1.0
+                pz0 = s0
+                pz1 = s1
+                peta = eta
+                ppw2 = pw2
+                ppw4 = pw4
+                pc0 = c0
+                pc1 = c1
+                if it >= MAX_ITER:
+                    status = -2
+                    break
+                if call == calls or same:
+                    break
+                # OpenSees' second update(): the same u and committed state, from this trial
+                # z, i.e. the same iteration restarted (its first powers are fresh: z moved)
+                call = 2
+                it = 0
+                fz0 = z0
+                fz1 = z1
+                fpw2 = pw2
+                ftmp2 = tmp2
         if status != 0 or not same:
             settled = 0.0
         if status == 0:
-            tmp5 = pw2 * tmp2  # OpenSees recomputes pow(zNrm, eta-2) of the last iteration
-            g00 = A - z0 * tmp5 * (z0 + z1 * r21)
-            g01 = (A - z0 * z0 * tmp5) * r12 - z0 * z1 * tmp5
-            g10 = (A - z1 * z1 * tmp5) * r21 - z0 * z1 * tmp5
-            g11 = A - z1 * tmp5 * (z1 + z0 * r12)
-            if abs(g00) > 1.0:
-                g00 = 1.0
-            if abs(g01) > 1.0:
-                g01 = sgn(g01)
-            if abs(g10) > 1.0:
-                g10 = sgn(g10)
-            if abs(g11) > 1.0:
-                g11 = 1.0
-            q0 = qd * z0 + k2 * u0
-            q1 = qd * z1 + k2 * u1
-            k00 = k0 * g00 + k2
-            k11 = k0 * g11 + k2
-            if k3 != 0.0:
-                q0 += k3 * sgn(u0) * powabs(u0, mu)
-                q1 += k3 * sgn(u1) * powabs(u1, mu)
-                k00 += k3 * mu * powabs(u0, mu - 1.0)
-                k11 += k3 * mu * powabs(u1, mu - 1.0)
-            k01 = k0 * g01
-            k10 = k0 * g10
+            q0, q1, e00, e01, e10, e11, k00, k01, k10, k11 = _finish(
+                k0, k2, k3, qd, mu, kini, u0, u1, z0, z1, pw2 * tmp2, r12, r21)
             f0 = q0
             f1 = q1
-            e00 = k00 - kini
-            e01 = k01
-            e10 = k10
-            e11 = k11 - kini
+        elif call == 2:
+            # failed in the second call: the trial force and tangent are the first call's
+            q0, q1, e00, e01, e10, e11, k00, k01, k10, k11 = _finish(
+                k0, k2, k3, qd, mu, kini, u0, u1, fz0, fz1, fpw2 * ftmp2, r12, r21)
+            f0 = q0
+            f1 = q1
+    return (status, settled, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2,
+            ppw4, pc0, pc1, f0, f1, k00, k01, k10, k11)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def step(p, sc, u, v, dt, st, f, k):
+    """Plan Bouc-Wen step (module docstring): forces ``f`` [kN], tangent ``k`` [kN/m], trial
+    state ``st``; status 0, -1 (zero Jacobian diagonal) or -2 (no convergence in 25).
+
+    Load, :func:`update` on scalars, store (every output entry written once, at the end): an
+    array touched in several branches made Numba keep an atomic incref and decref of four array
+    arguments per call (its reference-count pruning could not pair them; ``perf`` put 15-18% of
+    the samples in ``NRT_incref``/``NRT_decref``).  ``forceinline``: LLVM inlines it into its
+    callers (the plan building), which saves the call of seven array arguments, 6-8% of a step,
+    without compiling it again (Numba's ``inline="always"`` did the same at the IR level and
+    took 2.3-5.6 s more to compile the driver)."""
+    k_init = p[0]
+    u0 = u[0]
+    u1 = u[1]
+    (status, settled, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4, pc0,
+     pc1, f0, f1, k00, k01, k10, k11) = update(
+        (1.0 - p[2]) * k_init, p[2] * k_init, p[3] * k_init, p[1], p[4], p[5], p[6], p[7],
+        u0, u1, sc[0], sc[1], sc[2], sc[3], st[2], st[3], st[4], st[5], st[6], st[7], st[8],
+        st[9], st[POW], st[POW + 1], st[POW + 2], st[POW + 3], st[POW + 4], st[POW + 5],
+        st[POW + 6], st[POW + 7], f[0], f[1], k[0, 0], k[0, 1], k[1, 0], k[1, 1], 1)
     store_plan_state(st, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11)
     st[SETTLED] = settled
     st[POW] = pv
@@ -442,6 +536,139 @@ def step(p, sc, u, v, dt, st, f, k):
     return status
 
 
+@njit(cache=True, inline="always")
+def _store_state(s, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11, settled, pv, pz0, pz1, peta,
+                 ppw2, ppw4, pc0, pc1):
+    """Write the 19 state entries (module docstring) into ``s``."""
+    store_plan_state(s, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11)
+    s[SETTLED] = settled
+    s[POW] = pv
+    s[POW + 1] = pz0
+    s[POW + 2] = pz1
+    s[POW + 3] = peta
+    s[POW + 4] = ppw2
+    s[POW + 5] = ppw4
+    s[POW + 6] = pc0
+    s[POW + 7] = pc1
+
+
+@njit(cache=True, error_model="numpy")
+def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
+    """bouc_wen's whole-history driver (``PlanLawSpec.history``): the generic plan driver
+    :func:`rrfrei.laws.plan._history.drive`, same contract and same bits (forces, tangents,
+    status, failure sample, and the committed and trial state left in ``sc`` and ``st``), with
+    the state carried through the time loop in local scalars.
+
+    Each step calls :func:`update` from the committed state, and a second time from the first
+    call's trial state unless the first one flags itself settled (OpenSees' two ``update()``
+    calls, :mod:`rrfrei.laws.plan._history`); committing is renaming the trial scalars, and
+    only the forces and tangent are stored per step.  ``sc`` and ``st`` are read on entry and
+    written on exit: where the state lives in arrays that may alias the outputs, LLVM must load
+    and store all 19 entries around every call (step entry and exit, commit: about a tenth of a
+    step).  The contract's "both the initial state on entry" is checked (ValueError otherwise):
+    the trial and committed state are then one set of scalars at each step's start.  ``time``
+    is not used (the law has no rate term), nor is ``use_time``.  A non-finite sample of
+    ``disp`` returns ``(NONFINITE_DISP, sample)`` before any step, as the generic driver does.
+    """
+    bad = first_nonfinite(disp)
+    if bad >= 0:
+        return NONFINITE_DISP, bad
+    for a in range(sc.shape[0]):
+        if not _same(sc[a], st[a]):
+            raise ValueError("bouc_wen plan driver: sc and st must both hold the initial state "
+                             "on entry (the trial state equal to the committed one)")
+    k_init = p[0]
+    k0 = (1.0 - p[2]) * k_init
+    k2 = p[2] * k_init
+    k3 = p[3] * k_init
+    qd = p[1]
+    mu = p[4]
+    eta = p[5]
+    beta = p[6]
+    gamma = p[7]
+    uc0 = st[0]
+    uc1 = st[1]
+    zc0 = st[2]
+    zc1 = st[3]
+    qc0 = st[4]
+    qc1 = st[5]
+    ec00 = st[6]
+    ec01 = st[7]
+    ec10 = st[8]
+    ec11 = st[9]
+    sdc = st[SETTLED]
+    pvc = st[POW]
+    pzc0 = st[POW + 1]
+    pzc1 = st[POW + 2]
+    petac = st[POW + 3]
+    ppw2c = st[POW + 4]
+    ppw4c = st[POW + 5]
+    pc0c = st[POW + 6]
+    pc1c = st[POW + 7]
+    up0 = 0.0
+    up1 = 0.0
+    for i in range(disp.shape[0]):
+        x0 = disp[i, 0]
+        x1 = disp[i, 1]
+        dp0 = (x0 - up0) / substeps
+        dp1 = (x1 - up1) / substeps
+        f0 = f1 = k00 = k01 = k10 = k11 = 0.0
+        for j in range(substeps):
+            u0 = x0
+            u1 = x1
+            if j != substeps - 1:
+                u0 = up0 + dp0 * (j + 1)
+                u1 = up1 + dp1 * (j + 1)
+            # OpenSees' two update() calls of the step (the second skipped when the first is
+            # settled), from the committed state
+            (status, sd, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4, pc0,
+             pc1, f0, f1, k00, k01, k10, k11) = update(
+                k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
+                zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, pvc, pzc0, pzc1, petac, ppw2c,
+                ppw4c, pc0c, pc1c, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2)
+            # f and k finite: x * 0 is 0 for every finite x, NaN for an infinity or NaN
+            bad = status == 0 and not (f0 * 0.0 + f1 * 0.0 + k00 * 0.0 + k01 * 0.0 + k10 * 0.0
+                                       + k11 * 0.0 == 0.0)
+            if status != 0 or bad:
+                _store_state(sc, uc0, uc1, zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, sdc, pvc,
+                             pzc0, pzc1, petac, ppw2c, ppw4c, pc0c, pc1c)
+                _store_state(st, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11, sd, pv, pz0, pz1,
+                             peta, ppw2, ppw4, pc0, pc1)
+                return (status if status != 0 else -3), i
+            uc0 = u0  # commit
+            uc1 = u1
+            zc0 = z0
+            zc1 = z1
+            qc0 = q0
+            qc1 = q1
+            ec00 = e00
+            ec01 = e01
+            ec10 = e10
+            ec11 = e11
+            sdc = sd
+            pvc = pv
+            pzc0 = pz0
+            pzc1 = pz1
+            petac = peta
+            ppw2c = ppw2
+            ppw4c = ppw4
+            pc0c = pc0
+            pc1c = pc1
+        force[i, 0] = f0
+        force[i, 1] = f1
+        tangent[i, 0, 0] = k00
+        tangent[i, 0, 1] = k01
+        tangent[i, 1, 0] = k10
+        tangent[i, 1, 1] = k11
+        up0 = x0
+        up1 = x1
+    _store_state(sc, uc0, uc1, zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, sdc, pvc, pzc0, pzc1,
+                 petac, ppw2c, ppw4c, pc0c, pc1c)
+    _store_state(st, uc0, uc1, zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, sdc, pvc, pzc0, pzc1,
+                 petac, ppw2c, ppw4c, pc0c, pc1c)
+    return 0, -1
+
+
 SPEC = register(
     PlanLawSpec(
         name="bouc_wen",
@@ -452,5 +679,6 @@ SPEC = register(
         opensees_element="elastomericBearingBoucWen",
         static_calls=2,
         settled_index=SETTLED,
+        history=drive,
     )
 )

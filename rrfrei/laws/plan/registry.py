@@ -21,7 +21,8 @@ Every plan law provides a Numba step kernel (``PlanLawSpec.step``)::
 A driver commits by copying ``st`` into ``sc`` once a step has converged.  Kernels that call a
 plan law (the history driver :mod:`rrfrei.laws.plan._history`, the plan building's Newmark
 integrator) are templates instantiated per law (:mod:`rrfrei.laws.specialise`) with the slot
-``plan_step`` bound to ``PlanLawSpec.step``.
+``plan_step`` bound to ``PlanLawSpec.step``; a law may bring its own whole-history driver
+(``PlanLawSpec.history``, the same results bit for bit), which :func:`driver` then returns.
 """
 
 from __future__ import annotations
@@ -55,6 +56,11 @@ class PlanLawSpec:
         provably return the same trial state, force and tangent (e.g. its last local iteration
         left z bit for bit unchanged), else 0.0; the history driver then skips that call.  -1:
         always call twice.
+    history : optional, the law's own whole-history driver (jitted, the contract of
+        :func:`rrfrei.laws.plan._history.drive`, with the same results as the generic driver
+        bound to ``step``, bit for bit), used by :func:`driver` in its place; ``None``: the
+        generic template.  A law writes one to carry its state through the time loop in local
+        scalars (``rrfrei.laws.plan.bouc_wen.drive``).
     """
 
     name: str
@@ -65,6 +71,7 @@ class PlanLawSpec:
     initial_state: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
     static_calls: int = 1
     settled_index: int = -1
+    history: Callable | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.static_calls not in (1, 2):
@@ -143,6 +150,13 @@ def get(name: str | PlanLawSpec | _laws.LawSpec) -> PlanLawSpec:
     )
 
 
+NONFINITE_DISP = -5
+"""Status of a whole-history driver whose displacement history holds a non-finite value, with
+the first such sample as its index: the drivers scan ``disp`` before the first step (inside the
+compiled call, where the numpy check cost ``simulate_force`` 60-80 us after another program had
+run, about 4 % of a 5,000-step bouc_wen history), and ``simulate_force`` raises the ValueError
+of :func:`rrfrei.simulate.as_plan_history` that names the sample and component."""
+
 HISTORY = "rrfrei.laws.plan._history"
 """The template of the plan laws' whole-history driver (:mod:`rrfrei.laws.plan._history`)."""
 
@@ -150,9 +164,18 @@ _DRIVERS: dict[str, tuple[PlanLawSpec, Callable]] = {}
 
 
 def driver(spec: PlanLawSpec) -> Callable:
-    """The law's whole-history driver (jitted), the instance of :data:`HISTORY` bound to its
-    step: ``drive(p, sc, st, disp, time, use_time, substeps, force, tangent) -> (status, index)``.
+    """The law's whole-history driver (jitted): ``PlanLawSpec.history`` where the law has one,
+    else the instance of :data:`HISTORY` bound to its step (:func:`generic_driver`):
+    ``drive(p, sc, st, disp, time, use_time, substeps, force, tangent) -> (status, index)``.
     """
+    if spec.history is not None:
+        return spec.history
+    return generic_driver(spec)
+
+
+def generic_driver(spec: PlanLawSpec) -> Callable:
+    """The instance of :data:`HISTORY` bound to the law's step (whatever ``spec.history``): the
+    reference a law's own driver must equal bit for bit."""
     from rrfrei.laws.specialise import instantiate
 
     hit = _DRIVERS.get(spec.name)
