@@ -522,16 +522,8 @@ def step(p, sc, u, v, dt, st, f, k):
         u0, u1, sc[0], sc[1], sc[2], sc[3], st[2], st[3], st[4], st[5], st[6], st[7], st[8],
         st[9], st[POW], st[POW + 1], st[POW + 2], st[POW + 3], st[POW + 4], st[POW + 5],
         st[POW + 6], st[POW + 7], f[0], f[1], k[0, 0], k[0, 1], k[1, 0], k[1, 1], 1)
-    store_plan_state(st, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11)
-    st[SETTLED] = settled
-    st[POW] = pv
-    st[POW + 1] = pz0
-    st[POW + 2] = pz1
-    st[POW + 3] = peta
-    st[POW + 4] = ppw2
-    st[POW + 5] = ppw4
-    st[POW + 6] = pc0
-    st[POW + 7] = pc1
+    _store_state(st, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11, settled, pv, pz0, pz1, peta,
+                 ppw2, ppw4, pc0, pc1)
     store_plan(f, k, f0, f1, k00, k01, k10, k11)
     return status
 
