@@ -2,12 +2,14 @@
 the same two-component displacement history.
 
 For each plan law with an OpenSees element (``rrfrei.laws.plan.names()``), per core (both
-single-threaded): openseespy's fastest path, ONE ``analyze(n)`` call with an element recorder
-writing to a file (the 3-D zero-length element of ``tests/opensees_plan.py``, both horizontal
-DOFs imposed), against ``rrfrei.simulate_force`` on the (n, 2) path (public API, validation and
-output arrays included).  The peer's model building and recorder set-up (before) and
-``ops.wipe()`` plus reading the recorder file (after) are outside its timer; warm-up excluded on
-both sides, the same interleaved repeats, medians, and the forces asserted equal in the same
+single-threaded): openseespy's fastest path, ONE ``analyze(n)`` call with a ``-binary`` element
+recorder writing to a file (full precision, without the text formatting that cost openseespy
+29 % here: ``_timing.read_binary_recorder``; the 3-D zero-length element of
+``tests/opensees_plan.py``, both horizontal DOFs imposed), against ``rrfrei.simulate_force``
+on the (n, 2) path (public API, validation and output arrays included).  The peer's model
+building and recorder set-up (before) and ``ops.wipe()`` plus reading the recorder file (after)
+are outside its timer; warm-up excluded on both sides, the same interleaved repeats, medians,
+and the forces asserted equal in the same
 run.  A law history is sequential, so there is no multi-core figure.  Cold start: a fresh
 interpreter (``import rrfrei`` + first plan ``simulate_force``) with an empty and with a warm
 temporary Numba cache.  Writes section ``bench_plan_laws``.
@@ -64,7 +66,7 @@ def opensees_side(ops, law: str, p: dict, u: np.ndarray) -> tm.Side:
         fd, path = tempfile.mkstemp(suffix=".out")
         os.close(fd)
         h._build(ops, law, p, u)
-        ops.recorder("Element", "-file", path, "-precision", 17, "-ele", 1, "force")
+        ops.recorder("Element", "-binary", path, "-ele", 1, "force")  # tm.read_binary_recorder
         return path
 
     def finish(path, status):
@@ -72,7 +74,7 @@ def opensees_side(ops, law: str, p: dict, u: np.ndarray) -> tm.Side:
         try:
             if status != 0:
                 raise RuntimeError(f"openseespy analysis of {law} failed (status {status})")
-            return np.loadtxt(path, ndmin=2)[-u.shape[0]:, 6:8]
+            return tm.read_binary_recorder(path, 12)[-u.shape[0]:, 6:8]
         finally:
             os.unlink(path)
 
@@ -123,8 +125,9 @@ def main() -> None:
         "of 200 steps, y: 0.8 x that amplitude, cycles of 150 steps, phase 0.7; amplitude "
         "2 -> 40 mm). **Per core**, both single-threaded, median of "
         f"{repeat} interleaved runs after one warm-up each. openseespy: the 3-D zero-length "
-        f"element, both horizontal DOFs imposed, one `analyze({u.shape[0]})` with an element "
-        "recorder; building the model, `ops.wipe()` and reading the recorder file are outside its "
+        f"element, both horizontal DOFs imposed, one `analyze({u.shape[0]})` with a `-binary` element "
+        "recorder (full precision, no text formatting inside `analyze`); building the model, "
+        "`ops.wipe()` and reading the recorder file are outside its "
         "timer. rrfrei: `simulate_force` on the (n, 2) path (validation and output included). "
         "Ratio = openseespy median / rrfrei median; the forces (both components) are asserted "
         f"equal (<= {TOLERANCE:g} of the peak) in the same run.",
