@@ -118,6 +118,58 @@ class _CaptureStderr:
         self.tmp.close()
 
 
+def first_spurious_sample(law: str, p: dict, disp, f_os) -> int | None:
+    """First sample at which OpenSees' Bouc-Wen state lies beyond the bound |z| <= z_max =
+    (beta + gamma)^(-1/eta), or None (every other law: None).
+
+    ``disp`` [m] and ``f_os`` [kN] are (n,) along one axis or (n, 2) in plan (|z| the Euclidean
+    norm).  From |z_C| <= z_max the step equation has its physical root inside the bound
+    (``rrfrei.laws.bouc_wen`` module docstring; in plan |z| saturates at the same bound); with
+    gamma > beta and |du| >> u_y it also has spurious roots outside it, and which one the local
+    Newton lands on, and whether it converges from there, is decided by the last bit of its
+    iterates (ours differ from OpenSees' by rounding: powers Taylor-updated, a 2x2 solve by
+    Cramer's rule in plan).  The differential tests therefore require agreement up to that
+    sample, not from it on.  z is read off OpenSees' force: z = (F - k2 u - k3 sgn(u) |u|^mu) / qd.
+    """
+    if law != "bouc_wen":
+        return None
+    disp = np.asarray(disp, dtype=float)
+    k2 = p["alpha1"] * p["k_init"]
+    k3 = p["alpha2"] * p["k_init"]
+    z = (np.asarray(f_os) - k2 * disp - k3 * np.sign(disp) * np.abs(disp) ** p["mu"]) / p["qd"]
+    size = np.abs(z) if z.ndim == 1 else np.hypot(z[:, 0], z[:, 1])
+    z_max = (p["beta"] + p["gamma"]) ** (-1.0 / p["eta"])
+    beyond = np.flatnonzero(size > z_max * (1.0 + 1e-6) + 1e-9)  # NaN is not beyond
+    return int(beyond[0]) if beyond.size else None
+
+
+def z_floor(law: str, p: dict) -> float:
+    """Force [kN] below which two correct Bouc-Wen ports may differ: OpenSees defines z only to
+    its local Newton tolerance (|dz| < 1e-12, ``-iter`` default), so forces of qd z agree to
+    qd 1e-12 and no better when every force is itself that small (a history of 1e-10 m steps
+    with eta < 1: 3.7e-18 kN apart on 1e-9 kN forces, seen by hypothesis).  0 for the others."""
+    return p["qd"] * 1e-12 if law == "bouc_wen" else 0.0
+
+
+def spurious_cut(law: str, p: dict, disp, f_os, fail_os: int, ours) -> int | None:
+    """The sample at which a differential test stops comparing, or None (compare all).
+
+    The first sample where OpenSees' state lies beyond the bound (:func:`first_spurious_sample`),
+    or, earlier, the sample where OpenSees' local Newton failed if ours lands beyond the bound
+    there: the same spurious-root lottery seen from the other side (OpenSees' first update()
+    call reached such a root, its second did not settle).  ``ours(disp) -> (force or None,
+    failing sample or -1)``.  A state of ours beyond the bound where OpenSees converged inside it
+    is no cut: it fails the comparison.
+    """
+    j = first_spurious_sample(law, p, disp, f_os)
+    if law == "bouc_wen" and fail_os >= 0 and (j is None or fail_os < j):
+        head = np.asarray(disp)[: fail_os + 1]
+        f, _ = ours(head)
+        if f is not None and first_spurious_sample(law, p, head, f) == fail_os:
+            j = fail_os
+    return j
+
+
 def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int, int]:
     """Basic shear force [kN] of the OpenSees element along ``disp`` [m].
 

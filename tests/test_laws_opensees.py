@@ -13,7 +13,7 @@ import pytest
 from _law_strategies import LAW_PARAMS, histories
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from opensees_harness import element_force, element_force_recorder
+from opensees_harness import element_force, element_force_recorder, spurious_cut, z_floor
 
 import rrfrei
 from rrfrei.protocols import protocol1
@@ -52,40 +52,10 @@ def _ours(law, p, disp):
         return None, int(m.group(1))
 
 
-def _first_spurious(law, p, disp, f_os):
-    """First sample at which OpenSees' Bouc-Wen state lies beyond the bound |z| <= z_max =
-    (beta + gamma)^(-1/eta), or None.
-
-    From |z_C| <= z_max the step equation always has its physical root inside the bound
-    (``rrfrei.laws.bouc_wen`` module docstring); with gamma > beta and |du| >> u_y it also has
-    spurious roots outside it, and which one the local Newton lands on, and whether it converges
-    from there, is decided by the last bit of its iterates (ours differ from OpenSees' by
-    rounding: ``|z|^eta = |z| |z|^(eta-1)`` and Taylor-updated powers).  Agreement is therefore
-    required up to that sample, not from it on.  z is read off OpenSees' force:
-    z = (F - k2 u - k3 sgn(u) |u|^mu) / qd.
-    """
-    if law != "bouc_wen":
-        return None
-    k2 = p["alpha1"] * p["k_init"]
-    k3 = p["alpha2"] * p["k_init"]
-    z = (f_os - k2 * disp - k3 * np.sign(disp) * np.abs(disp) ** p["mu"]) / p["qd"]
-    z_max = (p["beta"] + p["gamma"]) ** (-1.0 / p["eta"])
-    beyond = np.flatnonzero(np.abs(z) > z_max * (1.0 + 1e-6) + 1e-9)  # NaN is not beyond
-    return int(beyond[0]) if beyond.size else None
-
-
-def _z_floor(law, p):
-    """Force [kN] below which two correct Bouc-Wen ports may differ: OpenSees defines z only to
-    its local Newton tolerance (|dz| < 1e-12, ``-iter`` default), so forces of qd z agree to
-    qd 1e-12 and no better when every force is itself that small (a history of 1e-10 m steps
-    with eta < 1: 3.7e-18 kN apart on 1e-9 kN forces, seen by hypothesis).  0 for the others."""
-    return p["qd"] * 1e-12 if law == "bouc_wen" else 0.0
-
-
 def _check_against_opensees(ops, law, p, disp):
     f_os, n_ok, fail_os = element_force(ops, law, p, disp)
-    j = _first_spurious(law, p, disp, f_os)
-    if j is not None:  # compare the samples before OpenSees lands on a spurious root
+    j = spurious_cut(law, p, disp, f_os, fail_os, lambda d: _ours(law, p, d))
+    if j is not None:  # compare the samples before the spurious root
         if j == 0:
             return
         disp = disp[:j]
@@ -98,7 +68,7 @@ def _check_against_opensees(ops, law, p, disp):
         if scale == 0.0:
             assert np.all(f == 0.0)
         else:
-            assert np.max(np.abs(f - f_os)) <= RTOL * scale + _z_floor(law, p)
+            assert np.max(np.abs(f - f_os)) <= RTOL * scale + z_floor(law, p)
 
 
 @pytest.mark.parametrize(

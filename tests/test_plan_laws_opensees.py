@@ -23,6 +23,7 @@ from _law_strategies import (
 )
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from opensees_harness import spurious_cut
 from opensees_plan import (
     PLAN_LAWS,
     check_against_opensees,
@@ -176,24 +177,33 @@ def test_bouc_wen_local_newton_failure_matches_opensees(ops):
     assert fail == fail_os == 2
 
 
-def test_bouc_wen_rounding_borderline_failure_matches_opensees(ops):
-    """One step drives z from 0 to 2633 (eta 0.375): the first update() converges in 12
-    iterations, the second (OpenSees' analysis updates the element twice per step) oscillates
-    between two doubles 3 ulp apart with |dz| = 1.5e-12 > tol and fails at iter 25.  Ours calls
-    the step twice per step as OpenSees does, so it fails at the same sample (a single call, or
-    a Jacobian rounded differently, lands on another double and converges)."""
+def test_bouc_wen_step_onto_a_spurious_root_is_where_the_comparison_stops(ops):
+    """One step drives z from 0 to 2633 (eta 0.375): a root of the backward-Euler equation far
+    beyond the bound |z| <= (beta + gamma)^(-1/eta) = 0.19, where a physical step cannot go.
+    OpenSees' first update() converges there in 12 iterations and its second oscillates between
+    two doubles 3 ulp apart (|dz| = 1.5e-12 > tol) until iter 25; ours, rounding differently,
+    settles on that root.  Which of the two happens is decided by the last bit, so the
+    differential tests compare up to such a sample (``spurious_cut``): here sample 1, with
+    sample 0 equal."""
     p = dict(k_init=10**4.5, qd=1.0, alpha1=0.0, alpha2=0.0, mu=1.0, eta=0.375, beta=0.34375,
              gamma=1.5078125)
     disp = np.array([[0.0, 0.0], [0.0, -0.00390625]])
-    _, fail = rrfrei_force_and_failure("bouc_wen", p, disp)
-    _, _, fail_os = element_force_and_failure(ops, "bouc_wen", p, disp)
-    assert fail == fail_os == 1
+    f_os, _, fail_os = element_force_and_failure(ops, "bouc_wen", p, disp)
+    assert fail_os == 1
+    f, fail = rrfrei_force_and_failure("bouc_wen", p, disp)
+    assert fail == -1 and np.array_equal(f[0], f_os[0])
+    z_max = (p["beta"] + p["gamma"]) ** (-1.0 / p["eta"])
+    assert np.hypot(*f[1]) / p["qd"] > 1e4 * z_max  # ours: the spurious root, as OpenSees' first call
+    assert spurious_cut("bouc_wen", p, disp, f_os, fail_os,
+                        lambda d: rrfrei_force_and_failure("bouc_wen", p, d)) == 1
 
 
-def test_bouc_wen_forces_equal_opensees_bit_for_bit(ops):
-    """With OpenSees' arithmetic and its two update() calls per step, the forces of a long
+def test_bouc_wen_forces_equal_opensees_to_rounding(ops):
+    """With OpenSees' iteration and its two update() calls per step, the forces of a long
     figure-eight with growing amplitude (the benchmark's path, 1,500 steps) are openseespy's to
-    the last bit at every sample."""
+    rounding at every sample: within 1e-14 of the peak force.  (Its powers are Taylor-updated
+    near convergence and its 2x2 solve is Cramer's rule, each good to a few ulp, where OpenSees
+    calls ``pow`` and LAPACK: measured 3.4e-16 on the 5,000-step benchmark path.)"""
     p = dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.02, mu=2.0, eta=1.37, beta=0.6, gamma=0.4)
     k = np.arange(1, 1501)
     amp = 0.002 + 0.038 * k / k.size
@@ -201,7 +211,8 @@ def test_bouc_wen_forces_equal_opensees_bit_for_bit(ops):
     f, fail = rrfrei_force_and_failure("bouc_wen", p, disp)
     assert fail == -1
     f_os = element_force_recorder(ops, "bouc_wen", p, disp)
-    assert np.array_equal(f, f_os), f"{np.sum(np.any(f != f_os, axis=1))} samples differ"
+    err = np.max(np.abs(f - f_os)) / np.max(np.abs(f_os))
+    assert err <= 1e-14, f"{err:.2e} of the peak; {np.sum(np.any(f != f_os, axis=1))} samples differ"
 
 
 def _drive(drive, p, disp, substeps):
@@ -250,16 +261,17 @@ def test_bouc_wen_own_driver_equals_the_generic_driver(path, data):
 @pytest.mark.parametrize("case", ["newton", "second_call"])
 def test_bouc_wen_own_driver_fails_as_the_generic_driver(case):
     """The failures: 25 iterations used up in the first update() call, and in the second one
-    (the rounding-borderline case below, where the state left behind holds the first call's
-    force and tangent): same status, sample and states."""
+    (the state left behind holds the first call's force and tangent; a case found by a search
+    over steep steps onto spurious roots, where OpenSees fails at the same sample): same status,
+    sample and states."""
     if case == "newton":
         p = dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.0, mu=2.0, eta=9.181247277429936,
                  beta=0.1979643833210143, gamma=0.28589263260021625)
         disp, want = np.array([[0.001, 0.0005], [0.002, 0.001], [-0.169674, -0.12]]), -2
     elif case == "second_call":
-        p = dict(k_init=10**4.5, qd=1.0, alpha1=0.0, alpha2=0.0, mu=1.0, eta=0.375,
-                 beta=0.34375, gamma=1.5078125)
-        disp, want = np.array([[0.0, 0.0], [0.0, -0.00390625]]), -2
+        p = dict(k_init=72952.68639726922, qd=1.0, alpha1=0.0, alpha2=0.0, mu=1.0, eta=0.3125,
+                 beta=0.25, gamma=1.0)
+        disp, want = np.array([[0.0, 0.0], [0.001953125, -0.00390625]]), -2
     assert _assert_bouc_wen_drivers_agree(p, disp) == want
 
 
@@ -396,44 +408,3 @@ def test_bouc_wen_pow_is_libm_pow_bit_for_bit():
     ok = ~np.isnan(ref)
     assert np.array_equal(ours[:20_000][ok].view(np.int64), ref[ok].view(np.int64))
     assert bw.POW_ENTRY in ("__pow_finite@GLIBC_2.15", "pow")
-
-
-def test_bouc_wen_cube_is_libm_pow_bit_for_bit():
-    """The kernel's z^3 (``bouc_wen._cube``: the exact cube's nearest double where the cube is
-    clear of a rounding midpoint, ``pow`` otherwise) is ``pow(z, 3.0)`` of the C library, as
-    OpenSees computes it, bit for bit: 10^6 random arguments over 2^-220 .. 2^220 of both signs
-    and the edges.  Among them, ``pow`` is not the nearest double to the cube for several
-    hundred: a fast path that returned the nearest double everywhere fails here (822 differ),
-    and so does one with margin 0.5 instead of 0.485 in [2^-8, 2^8] (455 differ)."""
-    import math
-
-    from numba import njit
-
-    from rrfrei.laws.plan import bouc_wen as bw
-
-    @njit
-    def both(zs):
-        fast = np.empty_like(zs)
-        libm = np.empty_like(zs)
-        for i in range(zs.size):
-            fast[i] = bw._cube(zs[i])
-            libm[i] = zs[i] ** 3.0
-        return fast, libm
-
-    rng = np.random.default_rng(3)
-    n = 1_000_000
-    zs = np.concatenate([
-        rng.uniform(-2.0, 2.0, n // 2),  # the hysteretic variable's range
-        rng.choice([-1.0, 1.0], n // 2) * 2.0 ** rng.uniform(-220.0, 220.0, n // 2),
-        [0.0, -0.0, np.inf, -np.inf, np.nan, 5e-324, -2.0 ** -1022, 2.0 ** -200, 2.0 ** 200,
-         1.0, -1.0, 2.0, np.nextafter(2.0, 0.0), np.nextafter(1.0, 3.0), 1.7976931348623157e308],
-    ])
-    fast, libm = both(zs)
-    assert np.array_equal(fast.view(np.int64), libm.view(np.int64)), \
-        f"{np.sum(fast.view(np.int64) != libm.view(np.int64))} of {zs.size} arguments differ"
-    # the reference is the C library's pow (Python's math.pow calls it too)
-    assert np.array_equal(libm[:100_000], [math.pow(z, 3.0) for z in zs[:100_000]])
-    # pow is not always the nearest double to the cube: the hard cases are in the sample (the
-    # nearest double by exact integer arithmetic; int / int is correctly rounded): 89 here
-    nearest = np.array([n**3 / d**3 for n, d in map(float.as_integer_ratio, zs[:100_000])])
-    assert np.sum(nearest != libm[:100_000]) > 20

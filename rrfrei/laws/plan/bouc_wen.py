@@ -22,67 +22,64 @@ du = u - u_C, solved for z by Newton's method on the two components, from the cu
     z <- z - Df^-1 f
 
 with |z| = DBL_EPSILON where z = 0 (l.510-544), while |dz| >= tol = 1e-12 and iter < maxIter = 25
-(the element's defaults, l.149-150).  Df^-1 f is solved as OpenSees' ``Vector::operator/(Matrix)`` does:
-LAPACK ``dgesv`` (``dgetrf2`` LU with partial pivoting, L scaled by the reciprocal pivot,
-``dgetrs`` with reference-BLAS ``dtrsm``); a singular U leaves dz = f, as ``dgesv`` leaves the
-right-hand side unsolved.  Status -1 if |Df_xx| or |Df_yy| <= DBL_EPSILON (OpenSees' "zero
-Jacobian", l.533-538), -2 if the loop ends with iter >= 25 (a solve converging exactly on the 25th
-iteration also fails, as in OpenSees, l.547-552).  When |du| <= DBL_EPSILON (Euclidean norm)
-nothing is recomputed: force and tangent are those of the previous call (OpenSees l.500).
+(the element's defaults, l.149-150).  OpenSees solves Df dz = f with ``Vector::operator/(Matrix)``
+(LAPACK ``dgesv``); here by Cramer's rule, dz = adj(Df) f / det(Df), one division where LU with
+partial pivoting has three in a row (for the diagonally dominant Jacobians of a converging step
+the two agree to a few ulp), and by the ``dgesv`` emulation :func:`_solve2` where det(Df) is 0
+exactly (a singular U leaves dz = f, as ``dgesv`` leaves the right-hand side unsolved).  Status
+-1 if |Df_xx| or |Df_yy| <= DBL_EPSILON (OpenSees' "zero Jacobian", l.533-538), -2 if the loop
+ends with iter >= 25 (a solve converging exactly on the 25th iteration also fails, as in
+OpenSees, l.547-552).  When |du| <= DBL_EPSILON (Euclidean norm) nothing is recomputed: force
+and tangent are those of the previous call (OpenSees l.500).
 
 Two calls per step.  OpenSees' static displacement-controlled analysis (``tests/opensees_plan.py``,
 the benchmark) calls ``update()`` twice per step: in ``LoadControl::newStep`` and after the first
 Newton correction (zero on the imposed shear DOFs).  The second call starts the local Newton
 again from the trial z the first one reached, so it can move z by rounding (a last iteration
-from there) or fail where the first converged: with eta = 0.375 and z driven from 0 to 2633 by
-one step (``test_bouc_wen_rounding_borderline_failure_matches_opensees``) the first call converges
-in 12 iterations and the second oscillates between two doubles 3 ulp apart with |dz| = 1.5e-12
-> tol until iter = 25.  The plan history driver therefore makes both calls per step (its own
-driver :func:`drive`, equal bit for bit to the generic one of :mod:`rrfrei.laws.plan._history`
-with ``PlanLawSpec.static_calls = 2``, which calls this step twice); the plan building calls it
-once per Newton iteration, as OpenSees' transient analysis does.  The second call is skipped when
-it provably returns the same bits: the first call's last iteration left z bit for bit unchanged
-(state entry 10, ``settled_index``), so the second would repeat that iteration exactly (about 60%
-of the steps of the benchmark's figure-eight).  Likewise the four powers of the first iteration
-of a call (|z|^(eta-2), |z|^(eta-4), z_x^3, z_y^3, a pure function of z and eta) are taken from
-the state when the last iteration of the previous call started from that very z (entries
-[11:19], keyed bit for bit on z and eta): true after a settled call and after nearly every
-second call, so about one local iteration's four ``pow`` per step are saved, with the same bits.
+from there) or fail where the first converged (e.g. with eta = 0.375 and z driven from 0 to
+2633 by one step, a spurious root, below, the second call oscillates between two doubles 3 ulp
+apart with |dz| = 1.5e-12 > tol until iter = 25).  The plan history driver therefore makes both
+calls per step (its own driver :func:`drive`, equal bit for bit to the generic one of
+:mod:`rrfrei.laws.plan._history` with ``PlanLawSpec.static_calls = 2``, which calls this step
+twice); the plan building calls it once per Newton iteration, as OpenSees' transient analysis
+does.  The second call is skipped when it provably returns the same bits: the first call's last
+iteration left z bit for bit unchanged (state entry 10, ``settled_index``), so the second would
+repeat that iteration exactly (about 60% of the steps of the benchmark's figure-eight).
+Likewise the powers of the first iteration of a call (|z|^(eta-2), |z|^(eta-4), z_x^3, z_y^3)
+are taken from the state when the last iteration of the previous call started from that very z
+(entries [11:19], keyed bit for bit on z and eta): true after a settled call and after nearly
+every second call, so one local iteration's powers per step are saved.
 
-Arithmetic: OpenSees' own, operation for operation (four powers per local iteration:
-|z|^(eta-2), |z|^(eta-4), z_x^3, z_y^3, with the values of the same libm ``pow`` as openseespy's
-in-process library); the only rewritten tests are exact: |dz| >= tol as |dz|^2 >= 1e-24 and
-|du| > DBL_EPSILON as |du|^2 > 4.930380657631325e-32, the thresholds between which the correctly
-rounded square root changes side (no square root, same outcome for every double).  Evidence: the
-benchmark's 5,000-step figure-eight gives forces bit for bit equal to openseespy's at every sample;
-a sweep of 100,000 random cases (random parameters over the test strategies' ranges, 30% with
-rounded "shrunk" values; random, circular and figure-eight paths; 24,588 cases with an OpenSees
-local failure) gives 0 failure-sample mismatches and a largest force difference of 2.0e-16 of the
-peak.  With a single call per step (the earlier driver) the same sweep had 16 mismatches and
-2.1e-13, and 3,012 of the 5,000 benchmark samples differed in the last bits.  Cheaper Jacobians
-were measured and rejected: |z|^(eta-4) as |z|^(eta-2) / |z|^2 with z_i^3 as z_i^2 z_i (one pow
-per iteration, about 1.2x faster) gave 73 mismatches, z_i^3 as z_i^2 z_i alone 53 -- a Jacobian
-rounded differently moves where the iteration lands among the doubles around the root (1 step in
-5,000 on the benchmark), which decides rounding-borderline failures.  ``pow(z, 3.0)`` of glibc is
-not the correctly rounded cube (it differs in about 0.1% of arguments), so z_i^3 keeps its
-values, but not its cost: :func:`_cube` forms the cube exactly (two FMAs) and returns the nearest
-double where the cube is far enough from a rounding midpoint that ``pow``, by its stated error
-bound, returns that double too, and calls ``pow`` otherwise (about 3% of the cubes); it equals
-``pow`` bit for bit over 10^6 test arguments, where ``pow`` is not the nearest double in several
-hundred.
+Arithmetic: OpenSees' iteration, iterate for iterate, to rounding.  The residual and the Jacobian
+are OpenSees' expressions term by term (with 1/u_y multiplied where OpenSees divides by u_y);
+the exact rewrites of its tests: |dz| >= tol as |dz|^2 >= 1e-24 and |du| > DBL_EPSILON as
+|du|^2 > 4.930380657631325e-32, the thresholds between which the correctly rounded square root
+changes side.  What differs by rounding: the solve (above), z_i^3 as z_i^2 z_i, and the powers.
+``pow`` (the C library's, :func:`_bind_pow`) is called for |z|^(eta-2) and |z|^(eta-4) at an
+anchor, the first iterate of a call whose powers are not cached; at the later iterates of the
+call, where |z|^2 has moved by a relative x with |x| <= 1e-6 (``TAYLOR_MAX``) from the anchor's,
+both are the anchor's times (1 + x)^h to second order, h = (eta-2)/2 or (eta-4)/2 (|z|^p =
+(|z|^2)^(p/2)): truncation below |C(h, 3)| |x|^3 <= 4e-18 relative for eta in [0.1, 10], under
+the ulp, and always from the anchor, so the error does not accumulate; farther away, ``pow``
+again and a new anchor.  Near convergence (the iterates where this applies) every step is tiny,
+so the iterates are OpenSees' to rounding.  Evidence: on the benchmark's 5,000-step
+figure-eight the forces are within 3.4e-16 of the peak of openseespy's; random circular,
+figure-eight and step paths agree within 1e-9 (the issue's bound, tested), up to a step onto a
+spurious root (a root of the backward-Euler equation beyond the bound |z| <= (beta +
+gamma)^(-1/eta), reached by steps |du| >> u_y with gamma > beta), where which root the iteration
+lands on, and whether its second call settles, is decided by the last bit, in OpenSees as here.
+Until 2026-11-27 the iteration was OpenSees' operation for operation (every ``pow`` called, the
+cubes as ``pow`` returns them, the ``dgesv`` sequence), equal to openseespy bit for bit on that
+path: 223 ns per step against 151 ns now (``docs/plan_laws.md``).
 
-Speed (what differs from OpenSees' code, with the same values): the two cubes without ``pow``
-(above); the powers reused by the next call (above); pow(|z|, eta-4), which heads the
-iteration's critical path (z -> |z| -> pow -> Jacobian -> the solve's three divisions -> z), is
-called before the cubes and pow(|z|, eta-2), needed later in the solve; ``pow`` is glibc's
-``__ieee754_pow`` itself, without the wrappers (:func:`_bind_pow`, same values).  The
-arithmetic is written once, on scalars (:func:`update`: state in, state out, inlined by LLVM);
-:func:`step` loads its arrays, calls it and writes each output once (with an array touched in
-several branches Numba kept an atomic incref/decref of four array arguments per call), and the
-history driver :func:`drive` (``PlanLawSpec.history``) carries the state through the time loop
-in local scalars, runs OpenSees' two calls of a step as one local iteration restarted, and
-computes force and tangent once per step.  ``docs/plan_laws.md`` gives where the time of a step
-goes.
+Speed: the powers above; ``pow`` is glibc's ``__ieee754_pow`` itself, without the wrappers
+(:func:`_bind_pow`, same values).  The arithmetic is written once, on scalars (:func:`update`:
+state in, state out, inlined by LLVM); :func:`step` loads its arrays, calls it and writes each
+output once (with an array touched in several branches Numba kept an atomic incref/decref of
+four array arguments per call), and the history driver :func:`drive` (``PlanLawSpec.history``)
+carries the state through the time loop in local scalars, runs OpenSees' two calls of a step as
+one local iteration restarted (each call with its own anchor, as two :func:`step` calls), and
+computes force and tangent once per step.
 
 Tangent (l.555-582): with t5 = |z_prev|^(eta-2) s of the last iteration's start point,
 du_x/du_y ratios (0 where du_x du_y = 0)::
@@ -112,7 +109,8 @@ State (float64[19])::
     [10]  settled: 1.0 when a repeated call with the same u and committed state would return
           the same bits (the last local iteration left z unchanged, or |du| <= DBL_EPSILON)
     [11:19] powers cache: 1.0 when valid, z_x, z_y, eta, then |z|^(eta-2), |z|^(eta-4), z_x^3,
-          z_y^3 at that z (the start point of the last local iteration)
+          z_y^3 at that z (the start point of the last local iteration), as that iteration
+          computed them (``pow`` or the Taylor update from its anchor)
 """
 
 import ctypes
@@ -145,29 +143,12 @@ trial state, force and tangent bit for bit (``PlanLawSpec.settled_index``)."""
 POW = 11
 """State entries [11:19]: 1.0 (valid), z_x, z_y, eta and |z|^(eta-2), |z|^(eta-4), z_x^3, z_y^3
 computed there (the start point of the last local iteration of the last call)."""
+TAYLOR_MAX = 1e-6
+"""Largest relative change of |z|^2 since the last ``pow`` for which |z|^(eta-2) and
+|z|^(eta-4) are Taylor-updated (module docstring)."""
 SFMIN = 2.2250738585072014e-308
 """LAPACK ``dlamch('S')``: below it ``dgetrf2`` divides by the pivot instead of scaling by its
 reciprocal."""
-
-
-CUBE_MIN = 2.0 ** -200
-CUBE_MAX = 2.0 ** 200
-"""Range of |z| where :func:`_cube` may skip ``pow`` (its cube, tail and ulp stay normal)."""
-CUBE_NEAR = 0.45
-"""Over [CUBE_MIN, CUBE_MAX], :func:`_cube` returns the double R nearest to the exact cube only
-when the cube is within ``CUBE_NEAR`` ulp of R.  glibc's ``pow`` (since 2.28, ``e_pow.c``)
-states its error as ulperr_exp + |y log x| relerr_log 2^53, with ulperr_exp = 0.509 ulp
-(0.511 without FMA) and relerr_log = 1.3 2^-68 (1.5 2^-68), at most 0.54 ulp; for y = 3 and
-|x| in this range, below 0.531 ulp: every other double is more than 0.55 ulp from the cube, so
-``pow`` returns R too."""
-CUBE_CLOSE = 2.0 ** 8
-CUBE_NEAR_CLOSE = 0.485
-"""For 2^-8 <= |z| <= 2^8 (|3 log|z|| <= 16.7: the log term is below 0.0008 ulp, the error of
-``pow`` below 0.512 ulp), the margin is ``CUBE_NEAR_CLOSE``: every other double is more than
-0.515 ulp from the cube.  Measured: where ``pow`` is not R, the cube lies within 0.008 ulp of a
-midpoint (84,267 of 1e8 random arguments in [0.01, 4]; 167,296 of 2e8 log-uniform in
-[2^-8, 2^8], all within 0.0087 ulp)."""
-MANTISSA = (1 << 52) - 1
 
 
 POW_SYMBOL = "rrfrei_libm_pow"
@@ -223,71 +204,6 @@ def _pow(typingctx, x, y):
         return builder.call(fn, args)
 
     return sig, codegen
-
-
-@intrinsic
-def _fma(typingctx, a, b, c):
-    """a * b + c with a single rounding (``llvm.fma``: the FMA instruction, or libm ``fma``)."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):
-        return builder.fma(*args)
-
-    return sig, codegen
-
-
-@intrinsic
-def _bits(typingctx, x):
-    """The IEEE 754 bits of a double, as an int64."""
-    sig = types.int64(types.float64)
-
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], ir.IntType(64))
-
-    return sig, codegen
-
-
-@intrinsic
-def _double(typingctx, b):
-    """The double with the IEEE 754 bits ``b`` (inverse of :func:`_bits`)."""
-    sig = types.float64(types.int64)
-
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], ir.DoubleType())
-
-    return sig, codegen
-
-
-@njit(cache=True, inline="always")
-def _cube(z):
-    """``z ** 3.0`` bit for bit as the C library's ``pow(z, 3.0)``, which OpenSees calls, mostly
-    without calling it.
-
-    The cube is formed exactly with two FMAs: z^2 = s + s_l, s |z| = c + c_l, so
-    |z|^3 = c + (c_l + s_l |z|) to about 2^-104 |z|^3, and t = (c_l + s_l |z|) / ulp(c)
-    (|t| < 1.5) says which of c and its neighbours is the nearest double R and how far the cube
-    is from it.  Within 0.485 ulp of R for 2^-8 <= |z| <= 2^8 (``CUBE_NEAR_CLOSE``), 0.45 ulp
-    elsewhere (``CUBE_NEAR``), R is returned: ``pow`` errs by less than 0.512 and 0.531 ulp there,
-    so it returns R too.  Otherwise (about 3 arguments in 100 in [2^-8, 2^8], 1 in 10 beyond),
-    and for zero, |z| outside [2^-200, 2^200], non-finite z and c at a binade edge, ``pow`` is
-    called.  ``pow(-x, 3) = -pow(x, 3)`` in glibc (it works on |x| and sets the sign), hence the
-    sign copied from z.  tests/test_plan_laws_opensees.py compares it with ``pow`` over 10^6
-    arguments.
-    """
-    a = abs(z)
-    if not (CUBE_MIN <= a <= CUBE_MAX):
-        return _pow(z, 3.0)
-    s = a * a
-    c = s * a
-    tail = _fma(s, a, -c) + _fma(a, a, -s) * a
-    b = _bits(c)
-    m = b & MANTISSA
-    t = tail * _double((2098 - (b >> 52)) << 52)  # tail / ulp(c), exact (a power of two)
-    k = int(t + 1.5) - 1  # the nearest integer to t where it matters (|t - k| <= CUBE_NEAR)
-    near = CUBE_NEAR_CLOSE if 1.0 / CUBE_CLOSE <= a <= CUBE_CLOSE else CUBE_NEAR
-    if abs(t - k) > near or m < 2 or m > MANTISSA - 2:
-        return _pow(z, 3.0)
-    return math.copysign(_double(b + k), z)
 
 
 @njit(cache=True, inline="always")
@@ -418,6 +334,14 @@ def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
         # the four powers at the start point are a pure function of (z, eta): reused from the
         # state when the last iteration of the previous call started from this very z
         hit = pv == 1.0 and _same(z0, pz0) and _same(z1, pz1) and eta == peta
+        # the anchor of the Taylor updates of the powers: 1 / |z|^2 and the powers where ``pow``
+        # was last called in this call (none yet: x = n2 * 0 - 1 = -1 takes ``pow``)
+        ian2 = 0.0
+        apw2 = apw4 = 0.0
+        h2 = 0.5 * em2  # |z|^(eta-2) = (|z|^2)^h2, |z|^(eta-4) = (|z|^2)^h4
+        h2b = 0.5 * h2 * (h2 - 1.0)
+        h4 = 0.5 * em4
+        h4b = 0.5 * h4 * (h4 - 1.0)
         while True:
             a0 = z0 * z0
             a1 = z1 * z1
@@ -428,15 +352,24 @@ def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
                 c1 = pc1
                 hit = False
             else:
-                znrm = math.sqrt(a0 + a1)  # Vector::Norm: sqrt(0 + z0^2 + z1^2), the same double
-                if znrm == 0.0:
-                    znrm = DBL_EPSILON
-                # the Jacobian's power first (it heads the critical path), then the cubes (also
-                # the Jacobian's), then the residual's power, needed last (in the solve)
-                pw4 = _pow(znrm, em4)
-                c0 = _cube(z0)  # pow(z0, 3.0), bit for bit
-                c1 = _cube(z1)
-                pw2 = _pow(znrm, em2)
+                n2 = a0 + a1
+                x = n2 * ian2 - 1.0  # relative change of |z|^2 since the anchor (-1: none)
+                if abs(x) <= TAYLOR_MAX:
+                    # (1 + x)^h to second order: relative error <= |C(h, 3)| x^3 (module docstring)
+                    pw2 = apw2 * (1.0 + x * (h2 + h2b * x))
+                    pw4 = apw4 * (1.0 + x * (h4 + h4b * x))
+                else:
+                    znrm = math.sqrt(n2)  # Vector::Norm: sqrt(0 + z0^2 + z1^2), the same double
+                    if znrm == 0.0:
+                        znrm = DBL_EPSILON
+                    pw2 = _pow(znrm, em2)
+                    pw4 = _pow(znrm, em4)
+                    # the new anchor: 1 / |z|^2 (|z| = 0: none, x stays -1)
+                    ian2 = 1.0 / n2 if n2 > 0.0 else 0.0
+                    apw2 = pw2
+                    apw4 = pw4
+                c0 = z0 * a0
+                c1 = z1 * a1
             s0 = z0
             s1 = z1
             tmp1 = z0 * du0 + z1 * du1
@@ -445,15 +378,21 @@ def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
             r0 = (z0 - zc0) - iuy * (A * du0 - z0 * tmp3)
             r1 = (z1 - zc1) - iuy * (A * du1 - z1 * tmp3)
             tmp4 = pw4 * tmp2
-            t = tmp4 / uy
+            t = tmp4 * iuy
             d00 = 1.0 + t * (c1 * du1 + 2.0 * a1 * z0 * du0 + z1 * a0 * du1 * em1 + c0 * du0 * eta)
-            d10 = z1 * tmp4 / uy * (a1 * du0 + z0 * z1 * du1 * em2 + a0 * du0 * em1)
-            d01 = z0 * tmp4 / uy * (a0 * du1 + z0 * z1 * du0 * em2 + a1 * du1 * em1)
+            d10 = z1 * t * (a1 * du0 + z0 * z1 * du1 * em2 + a0 * du0 * em1)
+            d01 = z0 * t * (a0 * du1 + z0 * z1 * du0 * em2 + a1 * du1 * em1)
             d11 = 1.0 + t * (c0 * du0 + 2.0 * a0 * z1 * du1 + z0 * a1 * du0 * em1 + c1 * du1 * eta)
             if abs(d00) <= DBL_EPSILON or abs(d11) <= DBL_EPSILON:
                 status = -1  # z of this iteration's start is kept, the powers cache unchanged
                 break
-            dz0, dz1 = _solve2(d00, d01, d10, d11, r0, r1)
+            det = d00 * d11 - d01 * d10
+            if det != 0.0:
+                idet = 1.0 / det
+                dz0 = (d11 * r0 - d01 * r1) * idet
+                dz1 = (d00 * r1 - d10 * r0) * idet
+            else:  # (d00, d11 > DBL_EPSILON: |d01 d10| = d00 d11) what dgesv leaves then
+                dz0, dz1 = _solve2(d00, d01, d10, d11, r0, r1)
             n0 = z0 - dz0
             n1 = z1 - dz1
             same = _same(n0, z0) and _same(n1, z1)  # this iteration left z bit for bit as it was
@@ -480,6 +419,7 @@ def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
                 # z, i.e. the same iteration restarted (its first powers are fresh: z moved)
                 call = 2
                 it = 0
+                ian2 = 0.0  # a call's anchor is its own (as a separate step() call)
                 fz0 = z0
                 fz1 = z1
                 fpw2 = pw2
