@@ -89,8 +89,10 @@ def test_a_registered_law_pickles_by_name():
 
 def test_augmented_laws_compose_effects_in_the_order_named_with_offsets_into_p_and_state():
     spec = get("plasticity+degradation+slip+rate")
-    assert spec.param_names[-6:] == ("deg_rate", "deg_travel", "slip_force", "rate_c", "rate_exp", "rate_sat")
-    assert spec.state_size == 1 + 5 + 1
+    assert spec.param_names[-12:] == ("deg_rate", "deg_travel", "deg_exp", "slip_force", "slip_stick",
+                                      "slip_static", "slip_dc", "rate_c", "rate_exp", "rate_sat", "rate_rise",
+                                      "rate_vsat")
+    assert spec.state_size == 1 + 5 + 2
     with pytest.raises(ValueError, match="at most 4 effects"):
         get("plasticity+degradation+slip+rate+mullins+asymmetry")
     u = np.linspace(0.0, 0.03, 50)

@@ -34,8 +34,13 @@ Kernels of an effect module
   base force, ``g(f_b)``, needs ``kb`` for its derivative ``dg/du = g'(f_b) k_b``), ``g, dg`` the
   scaling so far and its derivative [1/m], ``fa, ka`` the additive force [kN] and tangent [kN/m]
   so far; it writes its trial state into ``st``;
-* a series effect: ``capacity(p, po) -> F_s`` [kN], the slider's capacity; its one state
-  variable (at ``so``) is the slider displacement u_s [m];
+* a series effect: ``capacity(p, po, sc, so) -> F_s`` [kN], the slider's capacity, which may
+  read the slider's committed state ``sc[so:]``; its first state variable (at ``so``) is the
+  slider displacement u_s [m], its second, if it has two, the slip travel since the slider last
+  stuck [m] (kept by the template: it grows by ``|du_s|`` in a step that slides and is 0 after a
+  step that sticks); optionally ``stick(p, po) -> y_s`` [m], the slider's stick displacement (an
+  elastic-plastic slider of stick stiffness ``F_s / y_s``, u_s its plastic slip; 0 or no
+  ``stick`` kernel: rigid-plastic);
 * optionally, beside an inner effect's ``apply``, a series elastic *slack* element:
   ``compliance(p, pc, F) -> (x_s, dx_s/dF)``, the element's deformation [m] as an increasing,
   bounded function of the force it carries (``|x_s| < p[pc]``, its travel; travel 0: no
@@ -112,6 +117,7 @@ class EffectSpec:
     hints: DiagnosisHints | None = field(default=None, compare=False, repr=False)
     compliance: Callable | None = field(default=None, compare=False, repr=False)
     compliance_param: int = 0
+    stick: Callable | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if (self.apply is None) == (self.capacity is None):
@@ -119,11 +125,13 @@ class EffectSpec:
                 f"effect {self.name!r}: give exactly one kernel, apply (inner effect) or capacity "
                 "(series slider)"
             )
-        if self.capacity is not None and self.state_size != 1:
+        if self.capacity is not None and self.state_size not in (1, 2):
             raise ValueError(
-                f"effect {self.name!r}: a series slider has state_size 1 (its displacement), "
-                f"got {self.state_size}"
+                f"effect {self.name!r}: a series slider has state_size 1 (its displacement) or 2 "
+                f"(and its slip travel since it last stuck), got {self.state_size}"
             )
+        if self.stick is not None and self.capacity is None:
+            raise ValueError(f"effect {self.name!r}: a stick kernel belongs to a series slider")
         if self.compliance is not None and (self.apply is None or self.state_size < 3
                                             or not 0 <= self.compliance_param < len(self.params)):
             raise ValueError(
@@ -201,8 +209,11 @@ def compose(base: LawSpec, effect_names: list[str]) -> LawSpec:
     eff, po, so = series[0] if series else (None, 0, 0)
     binds["HAS_SERIES"] = eff is not None
     binds["series_capacity"] = eff.capacity if eff is not None else _neutral.no_capacity
+    binds["series_stick"] = (eff.stick if eff is not None and eff.stick is not None
+                             else _neutral.no_stick)
     binds["P_SERIES"] = po
     binds["S_SERIES"] = so
+    binds["SERIES_TRAVEL"] = eff is not None and eff.state_size == 2
     eff, po, so = slack[0] if slack else (None, 0, 0)
     binds["HAS_SLACK"] = eff is not None
     binds["slack_compliance"] = eff.compliance if eff is not None else _neutral.no_compliance

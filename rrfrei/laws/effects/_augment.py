@@ -7,7 +7,10 @@ Slots, bound per augmented law by :func:`rrfrei.laws.effects.compose`:
 * ``effect_k``, ``P_k``, ``S_k`` (k = 1..4): the ``apply`` kernel of the k-th inner effect in the
   order named, with the offsets of its parameters and state (unused positions bound to
   :func:`rrfrei.laws.effects._neutral.no_effect`);
-* ``HAS_SERIES``, ``series_capacity``, ``P_SERIES``, ``S_SERIES``: the series slider, if any;
+* ``HAS_SERIES``, ``series_capacity``, ``series_stick``, ``P_SERIES``, ``S_SERIES``,
+  ``SERIES_TRAVEL``: the series slider, if any (its capacity, which may read its committed state,
+  and its stick displacement: 0 for a rigid-plastic slider), and whether it keeps its slip
+  travel since it last stuck (its second state variable);
 * ``HAS_SLACK``, ``slack_compliance``, ``P_SLACK``, ``S_SLACK``: an inner effect's series
   elastic slack element, if any (:func:`_slack`): its compliance kernel, the offset of its
   travel parameter (0: rigid, the element is absent) and of its state (three slots: the
@@ -29,7 +32,7 @@ SLOTS = (
     "effect_2", "P_2", "S_2",
     "effect_3", "P_3", "S_3",
     "effect_4", "P_4", "S_4",
-    "HAS_SERIES", "series_capacity", "P_SERIES", "S_SERIES",
+    "HAS_SERIES", "series_capacity", "series_stick", "P_SERIES", "S_SERIES", "SERIES_TRAVEL",
     "HAS_SLACK", "slack_compliance", "P_SLACK", "S_SLACK",
 )
 base_step = unbound("base_step")
@@ -38,9 +41,11 @@ effect_2 = unbound("effect_2")
 effect_3 = unbound("effect_3")
 effect_4 = unbound("effect_4")
 series_capacity = unbound("series_capacity")
+series_stick = unbound("series_stick")
 slack_compliance = unbound("slack_compliance")
 NB = NS = P_1 = S_1 = P_2 = S_2 = P_3 = S_3 = P_4 = S_4 = P_SERIES = S_SERIES = P_SLACK = S_SLACK = 0
 HAS_SERIES = False
+SERIES_TRAVEL = False
 HAS_SLACK = False
 
 
@@ -74,17 +79,67 @@ def _inner_fresh(p, sc, x, v, dt, st):
 
 
 @njit(cache=True)
+def _stick(p, sc, u, us, ys, fs, v, dt, st):
+    """The inner law in series with the slider's stick spring ``k_s = F_s / y_s`` while it
+    sticks: the inner displacement ``x`` solves ``phi(x) = x + F(x) / k_s - (u - u_s) = 0``,
+    increasing in ``x`` (slope ``1 + k / k_s >= 1`` for a tangent ``k >= 0``) and bracketed by
+    ``x0 = u - u_s`` and ``x0 - F(x0) / k_s``; Newton, a bisection step whenever it leaves the
+    bracket.  Returns ``(x, F, k, status)``, ``k`` the inner tangent at ``x``."""
+    cs = ys / fs  # the stick spring's compliance 1 / k_s [m/kN]
+    x0 = u - us
+    f, k, status = inner(p, sc, x0, v, dt, st)
+    if status != 0 or f == 0.0:
+        return x0, f, k, status
+    x1 = x0 - f * cs
+    lo = min(x0, x1)
+    hi = max(x0, x1)
+    x = x0
+    tol = 1e-12 * max(abs(ys), 1e-12)
+    for _ in range(100):
+        ph = x + f * cs - x0
+        if ph > 0.0:
+            hi = x
+        else:
+            lo = x
+        if abs(ph) <= tol or hi - lo <= tol:
+            return x, f, k, 0
+        d = 1.0 + k * cs
+        xn = x - ph / d if d > 0.0 else 0.5 * (lo + hi)
+        if not (lo < xn < hi):
+            xn = 0.5 * (lo + hi)
+        x = xn
+        f, k, status = _inner_fresh(p, sc, x, v, dt, st)
+        if status != 0:
+            return x, f, k, status
+    return x, f, k, -2
+
+
+@njit(cache=True)
 def _slide(p, sc, u, v, dt, st):
-    """The inner law in series with a rigid-plastic slider of capacity ``series_capacity``:
-    while |F| < F_s it sticks, else u_s moves so that |F| = F_s (safeguarded Newton on the
-    inner law, then bisection)."""
-    fs = series_capacity(p, P_SERIES)
+    """The inner law in series with a slider of capacity ``series_capacity``: while |F| < F_s it
+    sticks, else u_s moves so that |F| = F_s (safeguarded Newton on the inner law, then
+    bisection).  With a stick displacement ``y_s = series_stick > 0`` the slider is
+    elastic-plastic: while it sticks it deforms as a spring of stiffness ``F_s / y_s`` in series
+    with the inner law (:func:`_stick`), and ``u_s`` is its plastic slip; ``y_s = 0``: the
+    rigid-plastic slider."""
     so = S_SERIES
+    fs = series_capacity(p, P_SERIES, sc, so)
+    ys = series_stick(p, P_SERIES)
     us = sc[so]
     st[so] = us
-    x = u - us
-    f, kt, status = inner(p, sc, x, v, dt, st)
+    if ys == 0.0:
+        x = u - us
+        f, kt, status = inner(p, sc, x, v, dt, st)
+    else:
+        x, f, kt, status = _stick(p, sc, u, us, ys, fs, v, dt, st)
+        st[so] = us
+        if status == 0 and abs(f) <= fs:
+            if SERIES_TRAVEL:
+                st[so + 1] = 0.0  # stuck: the travel since the last stick restarts
+            return f, kt / (1.0 + kt * ys / fs), 0
     if status != 0 or abs(f) <= fs:
+        if SERIES_TRAVEL:
+            st[so + 1] = 0.0
         return f, kt, status
     # sliding: find the inner displacement x with |F(x)| = fs between x (|F| > fs) and a point
     # back towards the committed inner displacement where |F| <= fs
@@ -139,7 +194,9 @@ def _slide(p, sc, u, v, dt, st):
                 lo = xn
             if abs(fn - target) <= tol or abs(hi - lo) <= 1e-15 * max(abs(hi), 1e-3):
                 break
-    st[so] = u - xn
+    st[so] = u - xn if ys == 0.0 else u - xn - s * ys
+    if SERIES_TRAVEL:
+        st[so + 1] = sc[so + 1] + abs(st[so] - us)
     return target, 0.0, 0
 
 
