@@ -74,13 +74,14 @@ from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap.diagnose import GapReport, _Checkpoint, _loco, diagnose
 from rrfrei.gap.model import (
     LEVEL,
+    RETRY_SUBSTEPS,
     FitResult,
     GapModel,
     IsolatorFit,
     IsolatorModel,
     Prediction,
-    _simulate,
     gaussian_loglik,
+    simulate_retry,
 )
 from rrfrei.io import ShearTest, concat_tests
 from structures.building import Isolator, ShearBuilding
@@ -108,7 +109,7 @@ UNITS = {"isolator_disp": "m", "isolator_force": "kN", "base_shear": "kN", "roof
 BANDS_HZ = ((0.0, 0.3), (0.3, 1.0), (1.0, 3.0), (3.0, 10.0), (10.0, math.inf))
 """Frequency bands of the residual table [Hz] (isolation mode ~0.4 Hz, superstructure 1.5-10 Hz)."""
 
-SUBSTEPS = (1, 4, 16)
+SUBSTEPS = RETRY_SUBSTEPS
 """Sub-increments per sample tried, in turn, when an isolator simulation fails."""
 
 
@@ -131,18 +132,10 @@ def resolve_run(spec: str | Path | ShakeTableRun) -> ShakeTableRun:
 def simulate_law(spec, p: np.ndarray, test: ShearTest) -> tuple[int, np.ndarray]:
     """Force [kN] of law ``spec`` with parameters ``p`` on ``test``'s samples, driven first
     through its ``preceding`` tests (:meth:`rrfrei.io.ShearTest.after`: the state they leave is
-    carried in); a failing local solve is retried with :data:`SUBSTEPS` sub-increments per sample.
-    Returns (status, force): status 0 on success."""
-    F = np.empty(len(test))
-    status = -99
-    for sub in SUBSTEPS:
-        try:
-            status, _ = _simulate(spec, p, test, F, substeps=sub)
-        except NUMERICAL_ERRORS:
-            status = -98
-        if status == 0 and np.all(np.isfinite(F)):
-            return 0, F
-    return status if status != 0 else -3, F
+    carried in); a failing local solve is retried with :data:`SUBSTEPS` sub-increments per sample
+    (:func:`rrfrei.gap.model.simulate_retry`).  Returns (status, force): status 0 on success."""
+    status, F, _ = simulate_retry(spec, p, test)
+    return status, F
 
 
 # ---------------------------------------------------------------------------------------------

@@ -351,3 +351,50 @@ def test_a_band_from_few_surviving_draws_is_as_wide_as_the_noise_and_says_why(n_
     assert np.all(np.isfinite(width))
     assert 0.8 * 2 * 1.96 * sigma < np.median(width) < 1.2 * 2 * 1.96 * sigma
     assert f"{20 - n_ok} of 20 posterior draws failed" in fit.note
+
+
+def _steep_bouc_wen_fit(n_draws=6):
+    """A bouc_wen fit whose local Newton fails on the sample steps of a 0.17 m jump (eta 9.18)
+    and succeeds with 4 sub-increments per sample."""
+    spec = get("bouc_wen")
+    p = spec.pack(dict(k_init=100.0, qd=1.0, alpha1=0.1, alpha2=0.0, mu=2.0, eta=9.181247277429936,
+                       beta=0.1979643833210143, gamma=0.28589263260021625))
+    u = np.r_[np.linspace(0.0, 0.002, 8), -0.169674, -0.16, -0.15, -0.1]
+    test = ShearTest("jump", np.arange(u.size, dtype=float), u, np.zeros(u.size), has_time=False)
+    fit = IsolatorFit(spec=spec, p_opt=p, P=np.repeat(p[None], n_draws, axis=0),
+                      sig=np.full(n_draws, 0.01), sigma=0.01, noise=0.01,
+                      free=("k_init", "qd", "alpha1", "mu", "eta", "gamma"), seed=0)
+    return spec, p, test, fit
+
+
+def test_a_prediction_whose_local_solve_fails_is_retried_with_sub_increments_and_says_so():
+    from rrfrei import simulate_force
+    from rrfrei.gap.model import _simulate
+
+    spec, p, test, fit = _steep_bouc_wen_fit()
+    assert _simulate(spec, p, test)[0] == -2  # the sample steps fail
+    pred = fit.predict(test)
+    want = simulate_force("bouc_wen", spec.as_dict(p), test.disp, substeps=4)
+    np.testing.assert_allclose(pred.mean, want, rtol=1e-14)  # the mean of six equal draws
+    assert "ran with 4/16 sub-increments per sample" in fit.note
+
+
+def test_a_prediction_that_fails_for_every_draw_and_the_optimum_is_a_numerical_failure_not_garbage(
+        monkeypatch):
+    """A failed driver leaves its force array uninitialised from the failing sample on; the
+    prediction must never be read from it."""
+    import rrfrei.gap.model as model
+
+    _, _, test, fit = _steep_bouc_wen_fit()
+
+    def failing(spec, p, data, out=None, substeps=1):
+        F = np.full(len(data), 123.0) if out is None else out  # what a failed run leaves behind
+        F[:] = 123.0
+        return -2, F
+
+    monkeypatch.setattr(model, "_simulate", failing)
+    with pytest.raises(NumericalFailure, match=r"every posterior draw and the optimum fail \(status -2, "
+                                               r"also with 16 sub-increments"):
+        fit.predict(test)
+    status, F, sub = model.simulate_retry(fit.spec, fit.p_opt, test)
+    assert status == -2 and sub == 16 and np.all(np.isnan(F))

@@ -55,6 +55,7 @@ from rrfrei.laws import LawSpec, get
 from rrfrei.laws.specialise import history
 
 __all__ = ["GapModel", "FitResult", "Prediction", "IsolatorModel", "IsolatorFit", "gaussian_loglik",
+           "simulate_retry",
            "white_noise", "test_scales"]
 
 LEVEL = 0.95
@@ -217,6 +218,34 @@ def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
     return int(status), F
 
 
+RETRY_SUBSTEPS = (1, 4, 16)
+"""Sub-increments per sample tried, in turn, when a prediction's simulation fails
+(:func:`simulate_retry`)."""
+
+
+def simulate_retry(spec: LawSpec, p: np.ndarray, test: ShearTest) -> tuple[int, np.ndarray, int]:
+    """:func:`_simulate` for a prediction: a failing local solve (status != 0 or a non-finite
+    force) is retried with :data:`RETRY_SUBSTEPS` sub-increments per sample.
+
+    Returns ``(status, force [kN], substeps used)``, status 0 on success.  A failed run's force
+    is NaN from its first sample on, never the uninitialised memory a failed driver leaves
+    behind.  More sub-increments change the result by the law's step-size dependence (implicit
+    integration over each increment): a retried prediction is the law refined in time, which the
+    caller reports.
+    """
+    status = -99
+    F = np.empty(len(test))
+    for sub in RETRY_SUBSTEPS:
+        try:
+            status, _ = _simulate(spec, p, test, F, substeps=sub)
+        except NUMERICAL_ERRORS:
+            status = -98
+        if status == 0 and np.all(np.isfinite(F)):
+            return 0, F, sub
+    F[:] = np.nan
+    return (status if status != 0 else -3), F, RETRY_SUBSTEPS[-1]
+
+
 @dataclass(eq=False)
 class IsolatorFit(FitResult):
     """A fitted isolator law (optimum + Laplace draws)."""
@@ -256,23 +285,37 @@ class IsolatorFit(FitResult):
         inv = np.asarray(inv).reshape(-1)
         FU = np.empty((U.shape[0], len(data)))
         stU = np.zeros(U.shape[0], dtype=np.int64)
+        subU = np.ones(U.shape[0], dtype=np.int64)
         for j in range(U.shape[0]):
-            stU[j], _ = _simulate(self.spec, U[j], data, FU[j])
+            stU[j], FU[j], subU[j] = simulate_retry(self.spec, U[j], data)
         F = FU[inv]
         status = stU[inv]
         ok = (status == 0) & np.all(np.isfinite(F), axis=1)
         n_ok = int(ok.sum())
+        dname = getattr(data, "name", "?")
+        refined = int(np.sum(subU[inv][ok] > 1))
         if not ok.any():
-            st, f0 = _simulate(self.spec, self.p_opt, data)
+            st, f0, sub = simulate_retry(self.spec, self.p_opt, data)
+            if st != 0:
+                raise NumericalFailure(
+                    f"law '{self.spec.name}' on test '{dname}': every posterior draw and the optimum "
+                    f"fail (status {st}, also with {RETRY_SUBSTEPS[-1]} sub-increments per sample)")
             F, ok = f0[None, :], np.array([True])
             sig = np.array([self.sigma])
+            refined = int(sub > 1)
         else:
             sig = self.sig[: F.shape[0]]
+        if refined:
+            self._add_note(
+                f"law '{self.spec.name}' on test '{dname}': {refined} of {max(n_ok, 1)} predictions "
+                f"ran with {'/'.join(map(str, RETRY_SUBSTEPS[1:]))} sub-increments per sample (the "
+                "law's local solve failed on the sample steps)")
         if n_ok < S:
             bad = sorted({int(c) for c in status[status != 0]})
             self._add_note(
-                f"law '{self.spec.name}' on test '{getattr(data, 'name', '?')}': {S - n_ok} of {S} "
-                f"posterior draws failed (status {', '.join(map(str, bad)) or 'non-finite force'}); "
+                f"law '{self.spec.name}' on test '{dname}': {S - n_ok} of {S} "
+                f"posterior draws failed (status {', '.join(map(str, bad)) or 'non-finite force'}, "
+                f"also with {RETRY_SUBSTEPS[-1]} sub-increments); "
                 + (f"its band uses the {n_ok} that ran" if n_ok else
                    "its band is the optimum's prediction with the noise alone"))
         F, sig = F[ok], sig[ok]
