@@ -12,42 +12,12 @@ by ``A^m`` (Miner's rule over a Coffin-Manson life).
 
 import numpy as np
 import pytest
+from test_effects_shapes import PL, T1, U1, committed_after
+from test_effects_shapes import one_step as _step
 
 from rrfrei import simulate_force
 from rrfrei.energy import cycle_metrics
 from rrfrei.laws import get
-from rrfrei.protocols import protocol
-
-PL = {"k_init": 120.0, "qd": 0.6, "alpha1": 0.2, "alpha2": 0.0, "mu": 2.0}
-BW = {"k_init": 120.0, "qd": 0.6, "alpha1": 0.2, "alpha2": 0.0, "mu": 2.0, "eta": 1.0, "beta": 0.5,
-      "gamma": 0.5}
-T1, U1 = protocol(1)  # growing cycles to 30 mm
-
-
-def _step(name, values, u, v, dt=0.05):
-    spec = get(name)
-    p = spec.pack(values)
-    sc = np.array(spec.initial_state, dtype=float)
-    f, k, status = spec.step(p, sc, u, v, dt, sc.copy())
-    assert status == 0
-    return f, k
-
-
-# --- defaults are the former kernels ---------------------------------------------------------------
-@pytest.mark.parametrize("base", ["plasticity", "bouc_wen"])
-@pytest.mark.parametrize("name,former,default", [
-    ("slip", {"slip_force": 1.1}, {"slip_stick": 0.0}),
-    ("slip", {"slip_force": 1.1, "slip_stick": 0.002}, {"slip_static": 1.0, "slip_dc": 0.004}),
-    ("rate", {"rate_c": 3.0, "rate_exp": 0.6, "rate_sat": 20.0}, {"rate_rise": 0.0}),
-    ("rate", {"rate_c": 3.0}, {"rate_rise": 0.0, "rate_vsat": 0.003}),
-    ("degradation", {"deg_rate": 5.0, "deg_travel": 0.3}, {"deg_exp": 1.0}),
-])
-def test_a_new_parameter_at_its_default_is_the_former_kernel_bit_for_bit(base, name, former, default):
-    values = PL if base == "plasticity" else BW
-    implicit = simulate_force(f"{base}+{name}", {**values, **former}, U1, time=T1)
-    explicit = simulate_force(f"{base}+{name}", {**values, **former, **default}, U1, time=T1)
-    assert np.array_equal(implicit, explicit)
-    assert not np.array_equal(implicit, simulate_force(base, values, U1, time=T1))
 
 
 def test_the_new_parameters_follow_their_former_ones():
@@ -98,12 +68,8 @@ def test_stick_displacement_rounds_the_loop_and_keeps_it_dissipative():
 def test_stick_tangent_is_the_derivative_of_the_force_within_a_step():
     spec = get("plasticity+slip")
     p = spec.pack({**PL, "slip_force": 1.1, "slip_stick": 0.003})
-    sc = np.array(spec.initial_state, dtype=float)
-    stt = sc.copy()
     path = np.concatenate([np.linspace(0, 0.025, 60), np.linspace(0.025, 0.015, 30)])
-    for u in path:
-        assert spec.step(p, sc, u, 0.0, 1.0, stt)[2] == 0
-        sc[:] = stt
+    sc, stt = committed_after(spec, p, path)
     for u in (0.0145, 0.012, 0.008):  # sticking after the reversal
         f, k, _ = spec.step(p, sc, u, 0.0, 1.0, stt.copy())
         assert abs(f) < 1.1
@@ -212,26 +178,11 @@ def test_faster_cycles_dissipate_more_up_to_the_plateau_of_the_strength():
     assert energies[2] == pytest.approx((1 + r) * base, rel=0.03)  # fast: the plateau
 
 
-def test_rate_strength_dissipates_in_every_cycle_and_its_tangent_is_consistent():
+def test_rate_strength_dissipates_in_every_cycle():
+    """(Its tangent: tests/test_effects_shapes.py, with the other kernels' tangents.)"""
     vals = {**PL, "rate_c": 2.0, "rate_rise": 0.5, "rate_vsat": 0.004}
     f = simulate_force("plasticity+rate", vals, U1, time=T1)
     assert (cycle_metrics(U1, f).energy >= -1e-12).all()
-    spec = get("plasticity+rate")
-    p = spec.pack(vals)
-    sc = np.array(spec.initial_state, dtype=float)
-    stt = sc.copy()
-    path = np.concatenate([np.linspace(0, 0.025, 60), np.linspace(0.025, 0.002, 40)])
-    for u in path:
-        assert spec.step(p, sc, u, 0.0, 1.0, stt)[2] == 0
-        sc[:] = stt
-    dt = 0.05
-    for u in (0.0015, 0.005, 0.018, -0.004):
-        v = (u - path[-1]) / dt
-        _, k, _ = spec.step(p, sc, u, v, dt, stt.copy())
-        h = 1e-8
-        fp = spec.step(p, sc, u + h, (u + h - path[-1]) / dt, dt, stt.copy())[0]
-        fm = spec.step(p, sc, u - h, (u - h - path[-1]) / dt, dt, stt.copy())[0]
-        assert k == pytest.approx((fp - fm) / (2 * h), rel=1e-5, abs=1e-6)
 
 
 # --- degradation: the amplitude exponent of the travel ---------------------------------------------

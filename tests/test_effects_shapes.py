@@ -23,14 +23,31 @@ T1, U1 = protocol(1)  # growing cycles to 30 mm
 NO_BAND = {"pinch": 0.0, "pinch_width": 0.5, "pinch_angle": 0.0}
 
 
-def _step_force(name, values, u, v, dt=0.05):
-    """Force of one step of ``name`` from its virgin state at displacement u and velocity v."""
+def one_step(name, values, u, v, dt=0.05):
+    """(force [kN], tangent [kN/m]) of one step of ``name`` from its virgin state at displacement
+    u [m] and velocity v [m/s] (the step's status asserted 0)."""
     spec = get(name)
     p = spec.pack(values)
     sc = np.array(spec.initial_state, dtype=float)
     f, k, status = spec.step(p, sc, u, v, dt, sc.copy())
     assert status == 0
-    return f
+    return f, k
+
+
+def committed_after(spec, p, path):
+    """(committed, trial) state of ``spec`` after the quasi-static displacement ``path`` [m]
+    from its virgin state, every step committed (status asserted 0)."""
+    sc = np.array(spec.initial_state, dtype=float)
+    stt = sc.copy()
+    for u in path:
+        assert spec.step(p, sc, u, 0.0, 1.0, stt)[2] == 0
+        sc[:] = stt
+    return sc, stt
+
+
+def _step_force(name, values, u, v, dt=0.05):
+    """Force of one step of ``name`` from its virgin state at displacement u and velocity v."""
+    return one_step(name, values, u, v, dt)[0]
 
 
 # --- defaults are the former kernels ---------------------------------------------------------------
@@ -41,6 +58,12 @@ def _step_force(name, values, u, v, dt=0.05):
     ("stiffening", {"stiff_k": 40.0, "stiff_onset": 0.01}, {"stiff_exp": 2.0}),
     ("pinching", {"pinch": 0.5, "pinch_width": 0.4, "pinch_angle": 0.3},
      {"slack_gap": 0.0, "slack_force": 0.05}),
+    # the breadth parameters of 2026-11-27 (tests/test_effects_breadth.py has their physics)
+    ("slip", {"slip_force": 1.1}, {"slip_stick": 0.0}),
+    ("slip", {"slip_force": 1.1, "slip_stick": 0.002}, {"slip_static": 1.0, "slip_dc": 0.004}),
+    ("rate", {"rate_c": 3.0, "rate_exp": 0.6, "rate_sat": 20.0}, {"rate_rise": 0.0}),
+    ("rate", {"rate_c": 3.0}, {"rate_rise": 0.0, "rate_vsat": 0.003}),
+    ("degradation", {"deg_rate": 5.0, "deg_travel": 0.3}, {"deg_exp": 1.0}),
 ])
 def test_a_shape_parameter_at_its_default_is_the_former_kernel_bit_for_bit(base, name, former, default):
     values = PL if base == "plasticity" else BW
@@ -153,6 +176,7 @@ def _sine_cycles(amp, cycles, n=200):
 # --- tangents --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name,values", [
     ("rate", {"rate_c": 5.0, "rate_exp": 0.7, "rate_sat": 20.0}),
+    ("rate", {"rate_c": 2.0, "rate_rise": 0.5, "rate_vsat": 0.004}),  # velocity-dependent strength
     ("degradation", {"deg_rate": 5.0, "deg_travel": 0.3}),
     ("stiffening", {"stiff_k": 50.0, "stiff_onset": 0.01, "stiff_exp": 3.5}),
     ("pinching", {**NO_BAND, "slack_gap": 0.003, "slack_force": 0.1}),
@@ -162,12 +186,8 @@ def _sine_cycles(amp, cycles, n=200):
 def test_tangent_is_the_derivative_of_the_force_within_a_step(name, values):
     spec = get(f"plasticity+{name}")
     p = spec.pack({**PL, **values})
-    sc = np.array(spec.initial_state, dtype=float)
-    stt = sc.copy()
     path = np.concatenate([np.linspace(0, 0.025, 60), np.linspace(0.025, 0.002, 40)])
-    for u in path:
-        assert spec.step(p, sc, u, 0.0, 1.0, stt)[2] == 0
-        sc[:] = stt
+    sc, stt = committed_after(spec, p, path)
     dt = 0.05
     for u in (0.0015, 0.005, 0.007, 0.018, 0.0262, -0.004):
         v = (u - path[-1]) / dt
