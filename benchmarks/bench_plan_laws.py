@@ -9,8 +9,8 @@ recorder writing to a file (full precision, without the text formatting that cos
 on the (n, 2) path (public API, validation and output arrays included).  The peer's model
 building and recorder set-up (before) and ``ops.wipe()`` plus reading the recorder file (after)
 are outside its timer; warm-up excluded on both sides, the same interleaved repeats, medians,
-and the forces asserted equal in the same
-run.  A law history is sequential, so there is no multi-core figure.  Cold start: a fresh
+and the forces asserted equal in the same run.  A law history is sequential, so there is no
+multi-core figure.  Cold start: a fresh
 interpreter (``import rrfrei`` + first plan ``simulate_force``) with an empty and with a warm
 temporary Numba cache.  Writes section ``bench_plan_laws``.
 

@@ -151,7 +151,7 @@ def rrfrei_force_and_failure(law: str, params: dict, disp) -> tuple[np.ndarray |
 def check_against_opensees(ops, law: str, params: dict, disp, rtol: float = RTOL) -> None:
     """The law fails at the sample where the OpenSees element's local solve first fails, or
     neither fails and the forces agree to ``rtol`` of the peak |F|, up to the first sample at
-    which OpenSees' Bouc-Wen state lands on a spurious root (:func:`first_spurious_sample`)."""
+    which OpenSees' Bouc-Wen state lands on a spurious root (:func:`spurious_cut`)."""
     f_os, n_ok, fail_os = element_force_and_failure(ops, law, params, disp)
     j = spurious_cut(law, params, disp, f_os, fail_os,
                      lambda d: rrfrei_force_and_failure(law, params, d))
