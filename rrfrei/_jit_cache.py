@@ -11,7 +11,8 @@ This module is imported by every package of the project (``rrfrei``, ``structure
 ``rubber``, ``ground_motions``) before any ``@njit(cache=True)`` is decorated.  It hashes every
 source file of those packages that uses Numba and points ``numba.config.CACHE_DIR`` at a
 folder named after that hash, so any edit to any kernel source gives every compiled function a
-fresh cache (a full recompile, once).  Older cache folders of the same checkout are removed.
+fresh cache (a full recompile, once).  Older cache folders of the same checkout are removed once
+they have not changed for two hours (:func:`_prune`).
 
 Where the cache lives
 ---------------------
@@ -69,11 +70,29 @@ def _writable(folder: Path) -> bool:
         return False
 
 
-def _prune(base: Path, keep: str) -> None:
-    """Remove cache folders of earlier source versions (best effort; never raises)."""
+PRUNE_AFTER = 2 * 3600.0
+"""Age [s] (since its last change) after which the cache folder of other sources is removed."""
+
+
+def _prune(base: Path, keep: str, older_than: float = PRUNE_AFTER) -> None:
+    """Remove cache folders of earlier source versions (best effort; never raises).
+
+    Only folders unchanged for ``older_than`` seconds go: a process started before a kernel
+    source was edited still runs on its own folder, and may compile a law into it later (the
+    instances of :mod:`rrfrei.laws.specialise` are written on first use); removing that folder
+    under it failed its next instance with ``FileNotFoundError``.  Staleness does not depend on
+    the removal: a new source version always has a new folder."""
+    import time
+
+    now = time.time()
     try:
         for child in base.iterdir():
             if child.is_dir() and child.name.startswith("k-") and child.name != keep:
+                try:
+                    if now - child.stat().st_mtime < older_than:
+                        continue
+                except OSError:
+                    continue
                 shutil.rmtree(child, ignore_errors=True)
     except OSError:
         pass

@@ -231,8 +231,12 @@ class CarriedIsolatorModel(GapModel):
     def fit(self, data, *, seed: int = 0, start=None, budget: TimeBudget | None = None) -> CarriedFit:
         return CarriedFit(self.inner.fit(data, seed=seed, start=start, budget=budget))
 
-    def augment(self, effects: Sequence[str]) -> CarriedIsolatorModel:
-        return CarriedIsolatorModel(self.inner.augment(effects))
+    def augment(self, effects: Sequence[str], variants: Mapping[str, str] | None = None
+                ) -> CarriedIsolatorModel:
+        return CarriedIsolatorModel(self.inner.augment(effects, variants=variants))
+
+    def variants(self, effect: str) -> tuple[str, ...]:
+        return self.inner.variants(effect)
 
     def observed(self, data) -> np.ndarray:
         return self.inner.observed(data)

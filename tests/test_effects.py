@@ -168,8 +168,8 @@ def test_compose_rejects_unknown_and_repeated_effects():
 def test_augmented_law_names_its_parameters_base_first_then_each_effect():
     spec = get("bouc_wen+rollover+rate")
     assert spec.param_names[:8] == get("bouc_wen").param_names
-    assert spec.param_names[8:] == ("roll_k", "roll_onset", "rate_c", "rate_exp", "rate_sat", "rate_rise",
-                                    "rate_vsat")
+    assert spec.param_names[8:] == ("roll_k", "roll_onset", "roll_exp", "rate_c", "rate_exp", "rate_sat",
+                                    "rate_rise", "rate_vsat")
     assert spec.free_names[-3:] == ("roll_k", "roll_onset", "rate_c")
     with pytest.raises(ValueError, match="alpha1"):
         spec.pack({**BW, "alpha1": 1.0, "roll_k": 0, "roll_onset": 0, "rate_c": 0})

@@ -40,9 +40,9 @@ def test_the_three_effects_are_catalogue_candidates_after_the_six_earlier_ones()
     for name, order in (("stiffening", 7), ("pinching", 8), ("scragging", 9)):
         assert EFFECTS[name].hints.order == order
     assert get("plasticity+stiffening").param_names[-3:] == ("stiff_k", "stiff_onset", "stiff_exp")
-    assert get("plasticity+pinching").param_names[-5:] == ("pinch", "pinch_width", "pinch_angle", "slack_gap",
-                                                           "slack_force")
-    assert get("plasticity+scragging").param_names[-2:] == ("scrag", "scrag_disp")
+    assert get("plasticity+pinching").param_names[-6:] == ("pinch", "pinch_width", "pinch_angle", "slack_gap",
+                                                           "slack_force", "pinch_line")
+    assert get("plasticity+scragging").param_names[-3:] == ("scrag", "scrag_disp", "scrag_shape")
     assert get("plasticity+stiffening").param("stiff_k").lower == 0.0  # stiffening only
 
 
@@ -137,6 +137,54 @@ def test_pinching_scales_the_force_by_the_closed_form_bump_on_the_pinching_line(
     g = _pinch_g(U1, fb, **vals)
     assert (g < 0.99).sum() > 20  # the band is crossed on every cycle
     np.testing.assert_allclose(f, fb * g, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("angle", [0.3, -0.6, 1.1])
+def test_pinching_toward_the_line_keeps_the_line_force_and_scales_the_distance_from_it(angle):
+    """BWBN's pinching (``pinch_line`` = 1): F - kappa u = g (f_b - kappa u), kappa = tan(phi)
+    F_max / u_max with the peaks committed before each sample; a blend lam in between is the
+    linear mix of the two closed forms."""
+    fb = simulate_force("plasticity", PL, U1)
+    vals = {**PINCH, "pinch_angle": angle, "pinch_width": 0.6}
+    g = _pinch_g(U1, fb, **vals)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        line = np.where(_before(U1) > 0, np.tan(angle) * _before(fb) / _before(U1) * U1, 0.0)
+    for lam in (1.0, 0.4):
+        f = simulate_force("plasticity+pinching", {**PL, **vals, "pinch_line": lam}, U1)
+        np.testing.assert_allclose(f, g * fb + (1 - g) * lam * line, rtol=1e-11, atol=1e-12)
+    assert (g < 0.99).sum() > 20
+
+
+def test_pinching_toward_the_line_returns_the_tangent_of_its_force():
+    """The consistent tangent (module docstring) against the force's own central difference, on
+    the plasticity base, whose own tangent is the derivative of its force away from its kinks
+    (``bouc_wen``'s is OpenSees' tangent of the element, not the derivative of its step)."""
+    base = "plasticity"
+    vals = {**(PL if base == "plasticity" else BW), **PINCH, "pinch_angle": 0.4, "pinch_width": 0.7,
+            "pinch_line": 1.0}
+    spec = get(f"{base}+pinching")
+    p = spec.pack(vals)
+    sc = np.array(spec.initial_state, dtype=float)
+    st = sc.copy()
+    nb = len(get(base).params)
+    checked = in_band = 0
+    h = 1e-7
+    for i in range(1, 700):
+        u = float(U1[i])
+        fp, kp, _ = spec.step(p, sc, u + h, 0.0, 1.0, st)
+        fm, km, _ = spec.step(p, sc, u - h, 0.0, 1.0, st)
+        bp = get(base).step(p[:nb], sc[:get(base).state_size].copy(), u + h, 0.0, 1.0,
+                            sc[:get(base).state_size].copy())[1]
+        bm = get(base).step(p[:nb], sc[:get(base).state_size].copy(), u - h, 0.0, 1.0,
+                            sc[:get(base).state_size].copy())[1]
+        f, k, status = spec.step(p, sc, u, 0.0, 1.0, st)
+        assert status == 0
+        if bp == pytest.approx(bm, rel=1e-3):  # not at a kink of the base law
+            assert k == pytest.approx((fp - fm) / (2 * h), rel=1e-4, abs=1e-4)
+            checked += 1
+            in_band += kp != pytest.approx(bp, rel=1e-9)
+        sc[:] = st
+    assert checked > 500 and in_band > 50
 
 
 def _zero_force_crossings(f, u):

@@ -64,6 +64,10 @@ def _step_force(name, values, u, v, dt=0.05):
     ("rate", {"rate_c": 3.0, "rate_exp": 0.6, "rate_sat": 20.0}, {"rate_rise": 0.0}),
     ("rate", {"rate_c": 3.0}, {"rate_rise": 0.0, "rate_vsat": 0.003}),
     ("degradation", {"deg_rate": 5.0, "deg_travel": 0.3}, {"deg_exp": 1.0}),
+    # the smooth rollover of the diagnosis's variants (2026-11-27)
+    ("rollover", {"roll_k": -20.0, "roll_onset": 0.01}, {"roll_exp": 1.0}),
+    ("pinching", {"pinch": 0.5, "pinch_width": 0.6, "pinch_angle": 0.4}, {"pinch_line": 0.0}),
+    ("scragging", {"scrag": 0.3, "scrag_disp": 0.01}, {"scrag_shape": 1.0}),
 ])
 def test_a_shape_parameter_at_its_default_is_the_former_kernel_bit_for_bit(base, name, former, default):
     values = PL if base == "plasticity" else BW
@@ -81,6 +85,55 @@ def test_slack_without_travel_is_the_base_law_whatever_its_force_width(base):
         f = simulate_force(f"{base}+pinching", {**values, **NO_BAND, "slack_gap": 0.0, "slack_force": sg},
                            U1, time=T1)
         assert np.array_equal(f, fb)
+
+
+# --- rollover: the smooth shape ------------------------------------------------------------------
+def test_smooth_rollover_adds_the_closed_form_force_with_no_tangent_at_its_onset():
+    k, ur, n = -40.0, 0.01, 3.0
+    vals = {**PL, "roll_k": k, "roll_onset": ur, "roll_exp": n}
+    for u in (-0.03, -0.015, -0.004, 0.0, 0.006, 0.012, 0.02, 0.045):
+        fa = _step_force("plasticity+rollover", vals, u, 0.0) - _step_force("plasticity", PL, u, 0.0)
+        e = max(abs(u) - ur, 0.0)
+        assert fa == pytest.approx(k * ur * np.sign(u) * (e / ur) ** n / n, rel=1e-12, abs=1e-15)
+    # the added tangent is zero at the onset and k_r at twice the onset (the plasticity base's
+    # tangent cancels in the difference of two steps from the virgin state)
+    _, k_on = one_step("plasticity+rollover", vals, ur, 0.0, 0.05)[:2]
+    _, k_base = one_step("plasticity", PL, ur, 0.0, 0.05)[:2]
+    _, k_2 = one_step("plasticity+rollover", vals, 2 * ur, 0.0, 0.05)[:2]
+    _, k_b2 = one_step("plasticity", PL, 2 * ur, 0.0, 0.05)[:2]
+    assert k_on == pytest.approx(k_base, abs=1e-12) and k_2 - k_b2 == pytest.approx(k, rel=1e-12)
+
+
+def test_smooth_rollover_softens_beyond_its_onset_only_and_stores_no_energy_in_a_cycle():
+    vals = {**PL, "roll_k": -30.0, "roll_onset": 0.008, "roll_exp": 2.5}
+    f = simulate_force("plasticity+rollover", vals, U1, time=T1)
+    fb = simulate_force("plasticity", PL, U1, time=T1)
+    d = f - fb
+    assert np.all(d * U1 <= 1e-12) and np.all(d[np.abs(U1) <= 0.008] == 0) and np.any(d * U1 < 0)
+    # elastic: the added force is a function of u alone, so its work over a closed path is zero
+    w = np.sum(0.5 * (d[1:] + d[:-1]) * np.diff(U1))
+    assert abs(w) < 1e-9 * np.sum(np.abs(d[1:]) * np.abs(np.diff(U1)))
+
+
+# --- scragging: the Weibull onset -----------------------------------------------------------------
+@pytest.mark.parametrize("k", [0.6, 3.0])
+def test_scragging_with_an_onset_scales_by_the_closed_form_of_the_running_peak(k):
+    s, uc = 0.3, 0.012
+    vals = {**PL, "scrag": s, "scrag_disp": uc, "scrag_shape": k}
+    f, kt = simulate_force("plasticity+scragging", vals, U1, time=T1, return_tangent=True)
+    fb, kb = simulate_force("plasticity", PL, U1, time=T1, return_tangent=True)
+    um = np.maximum.accumulate(np.abs(U1))
+    g = 1 - s * (1 - np.exp(-((um / uc) ** k)))
+    np.testing.assert_allclose(f, g * fb, rtol=1e-12, atol=1e-14)
+    # on a new peak the tangent carries dg/du_max (away from the virgin start)
+    new = np.r_[False, np.abs(U1[1:]) > um[:-1]] & (um > 1e-4)
+    dg = -s * k * (um / uc) ** (k - 1) * np.exp(-((um / uc) ** k)) / uc * np.sign(U1)
+    np.testing.assert_allclose(kt[new], (g * kb + fb * dg)[new], rtol=1e-10)
+    # k > 1: little softening while the peak is well below u_c, more than the exponential beyond it
+    exp_g = 1 - s * (1 - np.exp(-um / uc))
+    if k > 1:
+        early, late = (um > 0) & (um < 0.3 * uc), um > 1.5 * uc
+        assert (g[early] > exp_g[early]).all() and (g[late] < exp_g[late]).all()
 
 
 # --- rate: the Cross form saturates -------------------------------------------------------------

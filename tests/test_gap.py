@@ -96,6 +96,50 @@ def test_rate_cannot_be_judged_without_a_time_column():
     assert rep.as_dict()["gap_before"]["holdout"] is None
 
 
+def _kernel_tests(effect_values: dict, seed: int = 0) -> list[ShearTest]:
+    """Protocols 1-4 (10 Hz) of ``plasticity+degradation`` with ``effect_values``, 1 % noise."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in (1, 2, 3, 4):
+        t, u = protocol(k, rate=10.0)
+        f = simulate_force("plasticity+degradation", {**PL, **effect_values}, u, time=t)
+        out.append(ShearTest(f"protocol{k}", t, u, f + rng.normal(0, 0.01 * np.abs(f).max(), f.size)))
+    return out
+
+
+@pytest.mark.parametrize("values,variant", [
+    ({"deg_rate": 0.0, "deg_travel": 0.25, "deg_exp": 0.15}, "cycles"),  # fades with the cycle count
+    ({"deg_rate": 0.08}, ""),  # fades with the work: the primary fit stands
+])
+def test_a_variant_stands_for_its_effect_only_when_the_held_out_blocks_ask_for_it(values, variant):
+    tests = _kernel_tests(values)
+    rep = diagnose_gap(tests[0], "plasticity", holdout=tests[1:], fixed=FIXED, effects=["degradation"],
+                       draws=30, combine=False)
+    top = rep.ranking[0]
+    assert rep.verdict == "degradation" and top.variant == variant
+    assert top.label == ("degradation (cycles)" if variant else "degradation")
+    assert rep.as_dict()["ranking"][0]["variant"] == variant
+    assert any("variant 'cycles'" in n for n in rep.notes) == bool(variant)
+    if variant:  # the fit that stands is the variant's: its amplitude exponent moved off 1
+        assert top.params["deg_exp"] < 0.6
+    else:
+        assert top.params["deg_exp"] == 1.0
+
+
+def test_a_variant_is_checked_where_it_is_given():
+    from rrfrei.gap.model import IsolatorModel
+
+    m = IsolatorModel("plasticity", fixed=FIXED).augment(["degradation"], variants={"degradation": "cycles"})
+    assert m.variant == {"degradation": "cycles"} and m.variants("rollover") == ("smooth",)
+    assert m.augment(["rate"]).variant == {"degradation": "cycles"}  # kept when effects are added
+    t = make_tests("control", 0, reduced=True)[0]
+    assert m.checkpoint_key(t) != IsolatorModel("plasticity+degradation", fixed=FIXED).checkpoint_key(t)
+    with pytest.raises(ValueError, match="effect 'degradation' has no variant 'fast'; its variants: cycles"):
+        IsolatorModel("plasticity+degradation", variants={"degradation": "fast"})
+    with pytest.raises(ValueError, match="variant 'smooth' given for effect 'rollover'"):
+        IsolatorModel("plasticity+degradation", variants={"rollover": "smooth"})
+
+
 def _write(test: ShearTest, path):
     path.write_text("time_s,disp_m,force_kN\n" + "\n".join(
         f"{a:.6f},{b:.8f},{c:.8f}" for a, b, c in zip(test.time, test.disp, test.force)))
@@ -114,9 +158,9 @@ def test_cli_gap_prints_the_json_summary_and_writes_the_report(tmp_path, capsys)
     assert out["diagnosis"] == "asymmetry" and out["combination"][0] == "asymmetry"
     assert out["verdict"] == "asymmetry" and out["evidence"]["named"]["effect"] == "asymmetry"
     assert set(out["where"][0]) == {"axis", "segment", "error_share", "coverage"}
-    assert set(out["ranking"][0]) == {"effect", "delta_elpd", "se", "shrink_calibration", "shrink_holdout",
-                                      "passes_rule", "named", "why", "calibration_blocks", "holdout_blocks",
-                                      "shrink", "shrink_on"}
+    assert set(out["ranking"][0]) == {"effect", "variant", "delta_elpd", "se", "shrink_calibration",
+                                      "shrink_holdout", "passes_rule", "named", "why", "calibration_blocks",
+                                      "holdout_blocks", "shrink", "shrink_on"}
     assert out["gap_after"]["holdout"] < out["gap_before"]["holdout"]
     for name in ("report.md", "gap_map.png", "loops.png", "ranking.png"):
         assert (tmp_path / "out" / name).stat().st_size > 0

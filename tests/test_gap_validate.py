@@ -55,21 +55,25 @@ def test_every_effect_of_issue_12_has_three_forms_of_different_shape():
                     assert np.linalg.norm(x - k * y) > 0.08 * np.linalg.norm(x), (effect, a, b)
 
 
-@pytest.mark.parametrize("effect,form", [("degradation", "cycle_count"), ("mullins", "erf_energy"),
-                                         ("rate", "tanh_friction")])
+@pytest.mark.parametrize("effect,form", [("mullins", "erf_energy"), ("pinching", "bwbn_like")])
 def test_the_fitted_catalogue_effect_does_not_reproduce_the_form_to_noise_level(effect, form):
-    """The catalogue's own kernel, refitted to noise-free data of the form, still misses by more
-    than the table's largest noise (2 % of the peak force): the form is not the kernel."""
+    """The catalogue's own kernel, refitted to noise-free data of the form as the diagnosis fits
+    it (the primary fit and every variant), still misses by more than the table's largest noise
+    (2 % of the peak force): the form is not the kernel.  The forms the variants reach within it
+    (``degradation/cycle_count``, ``rate/tanh_friction``, the three scragging forms,
+    ``rollover/quadratic``: docs/gap/validation.md) are no longer in this list."""
     from rrfrei.gap.model import IsolatorModel
     from rrfrei.gap.residuals import gap
     from rrfrei.laws import get
 
     data = make_case_tests(Case(effect, form, 0), rate=5.0, size_quantile=1.0, noise=("gaussian", 0.0))
     test = data.tests[0]
-    fit = IsolatorModel(get("plasticity"), fixed=FIXED, draws=20).augment([effect]).fit(test, seed=0)
-    rms = float(np.sqrt(np.mean((test.force - fit.predict(test).mean) ** 2)))
-    assert rms > 0.02 * np.abs(test.force).max()
-    assert gap(test.force, fit.predict(test).mean) > 0.02
+    model = IsolatorModel(get("plasticity"), fixed=FIXED, draws=20)
+    for variant in ("", *model.augment([effect]).variants(effect)):
+        fit = model.augment([effect], variants={effect: variant}).fit(test, seed=0)
+        rms = float(np.sqrt(np.mean((test.force - fit.predict(test).mean) ** 2)))
+        assert rms > 0.02 * np.abs(test.force).max(), variant
+        assert gap(test.force, fit.predict(test).mean) > 0.02, variant
 
 
 def test_forms_change_the_force_in_the_direction_of_their_physics():

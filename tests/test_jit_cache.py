@@ -97,7 +97,11 @@ def test_editing_a_law_reaches_callers_in_other_files_and_reverting_restores_it(
     assert reverted["base_step"] == before["base_step"]
     assert reverted["batch"] == before["batch"]
     assert reverted["loglik"] == before["loglik"]
-    assert not Path(edited["cache"]).exists(), "caches of other source versions are pruned"
+    assert Path(edited["cache"]).exists(), "a recent cache of other sources stays (a process may use it)"
+    old = Path(edited["cache"]).stat().st_mtime - 3 * 3600
+    os.utime(edited["cache"], (old, old))
+    _run(tree)
+    assert not Path(edited["cache"]).exists(), "caches of other source versions are pruned once old"
 
 
 TOY_FROM = "        return k * u, k, 0\n"
@@ -140,3 +144,17 @@ def test_a_user_set_numba_cache_dir_is_respected(tmp_path):
     ours, numba_dir = out.stdout.split()
     assert ours == "None"
     assert numba_dir == str(tmp_path / "mine")
+
+
+def test_old_cache_folders_go_but_a_running_process_keeps_its_own(tmp_path):
+    """A folder of other sources is removed once unchanged for two hours; a recent one (another
+    process, started before an edit, may still compile into it) stays, and so does the current."""
+    from rrfrei import _jit_cache
+
+    for name in ("k-current", "k-old", "k-recent", "unrelated"):
+        (tmp_path / name).mkdir()
+    old = (tmp_path / "k-old").stat().st_mtime - 3 * 3600
+    os.utime(tmp_path / "k-old", (old, old))
+    os.utime(tmp_path / "unrelated", (old, old))
+    _jit_cache._prune(tmp_path, "k-current")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k-current", "k-recent", "unrelated"]

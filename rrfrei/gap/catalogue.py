@@ -29,7 +29,7 @@ into the diagnosis's catalogue; each effect has
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -71,6 +71,20 @@ class EffectInfo:
     scales: Callable[[Scales], dict[str, float]]
     box: Callable[[Scales], dict[str, tuple[float, float]]] = lambda s: {}
     needs_time: bool = False
+    variants: tuple = ()
+    """Further ways to fit the effect (:class:`rrfrei.laws.effects.Variant`)."""
+    variant: str = ""
+    """The variant these hints are ("": the primary fit)."""
+
+    def as_variant(self, name: str) -> EffectInfo:
+        """These hints with the starts, scales and box of the variant ``name`` ("": unchanged)."""
+        if not name:
+            return self
+        for v in self.variants:
+            if v.name == name:
+                return replace(self, starts=v.starts, scales=v.scales, box=v.box, variant=name)
+        raise ValueError(f"effect {self.name!r} has no variant {name!r}; its variants: "
+                         f"{', '.join(v.name for v in self.variants) or '(none)'}")
 
     @property
     def spec(self):
@@ -90,7 +104,8 @@ def catalogue() -> dict[str, EffectInfo]:
     for name, eff in EFFECTS.items():
         h = eff.hints
         if h is not None:
-            out.append((h.order, name, EffectInfo(name, h.screen, h.starts, h.scales, h.box, h.needs_time)))
+            out.append((h.order, name, EffectInfo(name, h.screen, h.starts, h.scales, h.box, h.needs_time,
+                                                   tuple(h.variants))))
     return {name: info for _, name, info in sorted(out, key=lambda t: (t[0], t[1]))}
 
 

@@ -65,7 +65,7 @@ import os
 import warnings
 from collections.abc import Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -133,6 +133,14 @@ class EffectScore:
     on the calibration test when there are none."""
     why: str = ""
     """The decision rule's reading in one line (why it passes or what fails)."""
+    variant: str = ""
+    """The variant of the effect that was fitted ("": the primary fit,
+    :class:`rrfrei.laws.effects.Variant`)."""
+
+    @property
+    def label(self) -> str:
+        """The effect's name, with its variant in parentheses when one was fitted."""
+        return f"{self.effect} ({self.variant})" if self.variant else self.effect
 
     def evidence(self) -> dict:
         """The decision rule's numbers (JSON-ready)."""
@@ -146,7 +154,7 @@ class EffectScore:
 
     def as_dict(self) -> dict:
         return {
-            "effect": self.effect, "law": self.law, "screen": _num(self.screen),
+            "effect": self.effect, "variant": self.variant, "law": self.law, "screen": _num(self.screen),
             "delta_elpd": _num(self.delta_elpd), "se": _num(self.se),
             "delta_holdout": _num(self.delta_holdout), "se_holdout": _num(self.se_holdout),
             "shrink_calibration": _num(self.shrink_calibration),
@@ -212,7 +220,8 @@ class GapReport:
             "evidence": self.evidence,
             "where": [{"axis": r.axis, "segment": r.segment, "error_share": _num(r.error_share),
                        "coverage": _num(r.coverage)} for r in self.where.head(10).itertuples()],
-            "ranking": [{"effect": e.effect, "delta_elpd": _num(e.delta_elpd), "se": _num(e.se),
+            "ranking": [{"effect": e.effect, "variant": e.variant, "delta_elpd": _num(e.delta_elpd),
+                         "se": _num(e.se),
                          "shrink_calibration": _num(e.shrink_calibration),
                          "shrink_holdout": _num(e.shrink_holdout), "passes_rule": e.significant,
                          "named": e.effect in self.combination, **e.evidence()}
@@ -358,6 +367,53 @@ def _score(sc: _Scorer, effect: str, fit: FitResult, ref: FitResult, screen: flo
                        shrink_calibration=_shrink(ref_metrics[0].systematic, mc.systematic),
                        shrink_holdout=sh, significant=sig, params=dict(fit.params),
                        blocks_calibration=cal_ev, blocks_holdout=ho_ev, shrink_ci=sh_ev, why=why)
+
+
+def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: str, fit: FitResult,
+                        score: EffectScore, data, budget: TimeBudget, seed: int, starts, base: FitResult,
+                        screen: float, bm, notes: list[str]) -> tuple[FitResult, EffectScore]:
+    """The fit that stands for ``effect``: the primary one, or a variant of the effect
+    (:class:`rrfrei.laws.effects.Variant`) that beats it by the block rule of
+    :mod:`rrfrei.gap.decision` (the rank test of the per-block squared-error reductions over the
+    held-out blocks; without held-out data, of the leave-one-block-out elpd gains on the
+    calibration test), the best such variant when several do (largest held-out lpd gain, or
+    calibration elpd gain).  The wider shape is taken when the data ask for it, not because it
+    bends further: a variant that fits the calibration test as well and extrapolates worse stays
+    out.  A variant whose fit or scoring fails, or that the time budget stops, is left out with
+    a note (the primary fit stands)."""
+    names = model.variants(effect)
+    if not names:
+        return fit, score
+    best_fit, best = fit, score
+    key = (lambda s: s.delta_holdout) if sc.holdout else (lambda s: s.delta_elpd)
+    for v in names:
+        if budget.expired():
+            notes.append(f"variant {v!r} of {effect} not tried: time budget")
+            break
+        step = f"refit of {model.name}+{effect} ({v})"
+        try:
+            vfit = _fit_or_restore(ck, f"effect-{effect}:{v}", model.augment([effect], variants={effect: v}),
+                                   data, budget, seed=seed, start=starts)
+            step = f"scoring of {vfit.name} ({v})"
+            if sc.holdout:
+                wins = dec.rank_evidence(sc.parts(vfit, fit).gains).passes()
+            else:
+                wins = dec.rank_evidence(sc.loco(vfit) - sc.loco(fit)).passes()
+            if not wins:
+                continue
+            vscore = replace(_score(sc, effect, vfit, base, screen, bm), variant=v)
+        except BudgetExceeded:
+            notes.append(f"variant {v!r} of {effect} not tried: time budget")
+            break
+        except NUMERICAL_ERRORS as exc:
+            notes.append(f"variant {v!r} of {effect} left out: {_failure(step, exc)}")
+            continue
+        if best is score or key(vscore) > key(best):
+            best_fit, best = vfit, vscore
+    if best is not score:
+        notes.append(f"{effect} fitted as its variant {best.variant!r}: it beats the primary fit on the "
+                     f"{'held-out' if sc.holdout else 'calibration'} blocks")
+    return best_fit, best
 
 
 def _n_free(fit: FitResult) -> int:
@@ -579,6 +635,7 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
         screens = screen_all(ctx) if ctx is not None else {e: float("nan") for e in known}
         bar.update()
         fits: dict[str, FitResult] = {base.name: base}
+        chosen: dict[str, str] = {}  # effect -> the variant that stands for it
         starts: list[FitResult] | None = None
         scores: list[EffectScore] = []
         for e in effects:
@@ -617,8 +674,12 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
             except NUMERICAL_ERRORS as exc:
                 skipped[e] = _failure(step, exc)
             else:
+                fit, score = _variant_or_primary(model, sc, ck, e, fit, score, data, budget, seed,
+                                                 starts, base, screens.get(e, float("nan")), bm, notes)
                 fits[fit.name] = fit
                 scores.append(score)
+                if score.variant:
+                    chosen[e] = score.variant
             bar.update()
         key = (lambda s: s.delta_holdout) if sc.holdout else (lambda s: s.delta_elpd)
         ranking = tuple(sorted(scores, key=lambda s: -key(s) if math.isfinite(key(s)) else math.inf))
@@ -664,9 +725,14 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                     bar.set_postfix_str(f"combine +{e}")
                     label = "+".join(combination + [e])
                     try:
-                        fit = _fit_or_restore(ck, f"combination-{label}", model.augment(combination + [e]),
+                        picked = {k: v for k, v in chosen.items() if k in combination + [e]}
+                        step_model = (model.augment(combination + [e], variants=picked) if picked
+                                      else model.augment(combination + [e]))
+                        tag = "".join(f"|{k}:{v}" for k, v in sorted(picked.items()))
+                        fit = _fit_or_restore(ck, f"combination-{label}{tag}", step_model,
                                               data, budget, seed=seed, start=current)
-                        cand.append((_score(sc, e, fit, current, screens.get(e, float("nan")), final), fit))
+                        cand.append((replace(_score(sc, e, fit, current, screens.get(e, float("nan")),
+                                                    final), variant=chosen.get(e, "")), fit))
                         fits[fit.name] = fit
                     except BudgetExceeded:
                         stopped = True

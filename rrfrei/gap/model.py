@@ -116,6 +116,11 @@ class GapModel(ABC):
     @abstractmethod
     def augment(self, effects: Sequence[str]) -> GapModel: ...
 
+    def variants(self, effect: str) -> tuple[str, ...]:
+        """Further ways this model fits ``effect`` (:class:`rrfrei.laws.effects.Variant`); a model
+        that has any takes ``augment(effects, variants={effect: name})``.  None by default."""
+        return ()
+
     @abstractmethod
     def observed(self, data) -> np.ndarray: ...
 
@@ -349,7 +354,7 @@ class IsolatorModel(GapModel):
     """
 
     def __init__(self, law: str | LawSpec, *, fixed: Mapping[str, float] | None = None,
-                 draws: int = 200) -> None:
+                 draws: int = 200, variants: Mapping[str, str] | None = None) -> None:
         self.spec = get(law)
         self.fixed = dict(fixed or {})
         for k in self.fixed:
@@ -357,15 +362,31 @@ class IsolatorModel(GapModel):
         if not isinstance(draws, (int, np.integer)) or draws < 10:
             raise ValueError(f"draws must be an integer >= 10, got {draws!r}")
         self.draws = int(draws)
+        self.variant = {e: v for e, v in dict(variants or {}).items() if v}
+        for e, v in self.variant.items():
+            if e not in self.spec.effects:
+                raise ValueError(f"variant {v!r} given for effect {e!r}, which law "
+                                 f"{self.spec.name!r} does not have")
+            catalogue()[e].as_variant(v)  # raises for an unknown variant
+
+    def _info(self, effect: str):
+        """The catalogue's hints of ``effect`` as this model fits it (its variant, if any)."""
+        return catalogue()[effect].as_variant(self.variant.get(effect, ""))
+
+    def variants(self, effect: str) -> tuple[str, ...]:
+        return tuple(v.name for v in catalogue()[effect].variants)
 
     @property
     def name(self) -> str:  # type: ignore[override]
         return self.spec.name
 
-    def augment(self, effects: Sequence[str]) -> IsolatorModel:
+    def augment(self, effects: Sequence[str], variants: Mapping[str, str] | None = None) -> IsolatorModel:
+        """This law with ``effects`` added; ``variants``: effect -> variant to fit it by (the
+        model's own choices are kept)."""
         base = self.spec.name.split("+")[0]
         have = list(self.spec.effects)
-        return IsolatorModel("+".join([base, *have, *effects]), fixed=self.fixed, draws=self.draws)
+        return IsolatorModel("+".join([base, *have, *effects]), fixed=self.fixed, draws=self.draws,
+                             variants={**self.variant, **dict(variants or {})})
 
     def observed(self, data: ShearTest) -> np.ndarray:
         return np.asarray(data.force, dtype=float)
@@ -385,7 +406,7 @@ class IsolatorModel(GapModel):
         """Fitted and fixed parameters: an effect's optional shape parameter (one with a default,
         so that a user may leave it out) is fitted when the effect's ``scales`` hint names it."""
         sample = {k for eff in self.spec.effects
-                  for k in catalogue()[eff].scales(_UNIT_SCALES)
+                  for k in self._info(eff).scales(_UNIT_SCALES)
                   if self.spec.param(k).optional}
         return self.spec.resolve_fixed(data.geometry, self.fixed, sample=frozenset(sample),
                                        source=f"test {data.name!r}")
@@ -440,6 +461,8 @@ class IsolatorModel(GapModel):
                     "geometry": {str(k): repr(v) for k, v in sorted(dict(data.geometry).items())},
                     "law": self.spec.name, "fixed": sorted(self.fixed.items()),
                     "draws": self.draws, "global_evals": GLOBAL_EVALS, "format": CHECKPOINT_FORMAT}
+        if self.variant:  # absent otherwise: the keys of primary fits are unchanged
+            settings["variants"] = sorted(self.variant.items())
         if data.preceding:  # absent otherwise: the keys of tests without history are unchanged
             settings["preceding"] = [self.checkpoint_key(t) for t in data.preceding]
         h.update(json.dumps(settings, sort_keys=True).encode())
@@ -501,7 +524,7 @@ class IsolatorModel(GapModel):
         scale = {n: max(abs(base_vals.get(n, 0.0)), 1e-12) for n in free}
         box: dict[str, tuple[float, float]] = {}
         for eff in spec.effects:
-            info = catalogue()[eff]
+            info = self._info(eff)
             es = info.scales(sc)
             scale.update({k: v for k, v in es.items() if k in free})
             box.update(info.box(sc))

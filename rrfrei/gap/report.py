@@ -75,7 +75,7 @@ def figures(rep: GapReport) -> dict:
     out["loops.png"] = fig
     fig = _fig(8, 3.2)
     ax1, ax2 = fig.subplots(1, 2)
-    names = [s.effect for s in rep.ranking]
+    names = [s.label for s in rep.ranking]
     y = np.arange(len(names))
     ax1.errorbar([s.delta_elpd for s in rep.ranking], y, xerr=[2 * s.se for s in rep.ranking], fmt="o")
     ax1.axvline(0, color="k", lw=0.5)
@@ -347,7 +347,7 @@ def write_report(rep: GapReport, out: str | Path, *, title: str | None = None,
     for s in rep.ranking:
         bc, bh, ci = s.blocks_calibration, s.blocks_holdout, s.shrink_ci
         lines.append(
-            f"| {s.effect} | {_f(s.screen, 2)} | {_f(s.delta_elpd)} +- {_f(s.se)} | "
+            f"| {s.label} | {_f(s.screen, 2)} | {_f(s.delta_elpd)} +- {_f(s.se)} | "
             + (f"{bc.positive}/{bc.blocks} ({bc.p:.2g})" if bc is not None else "n/a") + " | "
             + (f"{bh.positive}/{bh.blocks} ({bh.p:.2g})" if bh is not None else "n/a") + " | "
             + f"{_pct(s.shrink_calibration)}"
@@ -356,11 +356,11 @@ def write_report(rep: GapReport, out: str | Path, *, title: str | None = None,
             + (f" [{_pct(ci.lower)}, {_pct(ci.upper)}]" if ci is not None and bh is not None else "") + " | "
             + f"{'yes' if s.significant else 'no'} | {_named(rep, s)} |")
     lines += ["", "Why each effect passes or not:", ""]
-    lines += [f"* `{s.effect}`: {s.why}" for s in rep.ranking]
+    lines += [f"* `{s.label}`: {s.why}" for s in rep.ranking]
     if rep.steps[1:]:
         lines += ["", "Greedy combination steps (each against the previous combination):", ""]
         for s in rep.steps[1:]:
-            lines.append(f"* + {s.effect}: delta elpd {_f(s.delta_elpd)} (se {_f(s.se)}); {s.why}")
+            lines.append(f"* + {s.label}: delta elpd {_f(s.delta_elpd)} (se {_f(s.se)}); {s.why}")
     lines += ["", "![ranking](ranking.png)", "", "## Where the baseline misses", "",
               "Segments ranked by excess error over the noise level (MSE / sigma^2 - 1).", "",
               "| axis | segment | n | error share | bias [kN] | RMS / noise | coverage | energy error |",

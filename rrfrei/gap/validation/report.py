@@ -39,6 +39,17 @@ def _table(header: list[str], rows: list[list]) -> list[str]:
     return out
 
 
+def _variants_taken(named) -> str:
+    """'k of n (name)' of the named cases fitted as a variant ('' when none was)."""
+    if "variant" not in named or not len(named):
+        return ""
+    v = named.variant.fillna("").astype(str)
+    taken = v[v != ""]
+    if not len(taken):
+        return ""
+    return f"{len(taken)} of {len(named)} ({', '.join(sorted(set(taken)))})"
+
+
 def markdown(res: ValidationResult, *, command: str = COMMAND, title_note: str = "") -> str:
     """The report (see the module docstring)."""
     s = res.settings
@@ -142,6 +153,7 @@ def markdown(res: ValidationResult, *, command: str = COMMAND, title_note: str =
                 _pct(r.miss_rate),
                 f"{_f(grp.effect_gap.min() * 100, '.0f')}-{_f(grp.effect_gap.max() * 100, '.0f')} %",
                 _f(named.shrink.median()) if len(named) else "",
+                _variants_taken(named),
             ]
         )
     lines += _table(
@@ -153,13 +165,17 @@ def markdown(res: ValidationResult, *, command: str = COMMAND, title_note: str =
             "miss rate",
             "effect size (held-out NRMSE)",
             "median shrink when named",
+            "fitted as a variant",
         ],
         rows,
     )
     lines += [
         "",
         "Effect size: NRMSE of the noise-free force with the effect against the base law's "
-        "force over the held-out tests (the gap the effect makes before any refit).",
+        "force over the held-out tests (the gap the effect makes before any refit).  Fitted as a "
+        "variant: named cases in which a variant of the effect (`rrfrei.laws.effects.Variant`: a "
+        "shape parameter more, taken only when it beats the primary fit on the held-out blocks) "
+        "stood for it.",
         "",
         "## Controls",
         "",

@@ -172,6 +172,7 @@ def run_case(case: Case, settings: Settings = FULL, deadline: float | None = Non
         shrink=_shrink(b.systematic, first.holdout.systematic)
         if (named and first is not None)
         else float("nan"),
+        variant=first.variant if (named and first is not None) else "",
         best=rep.ranking[0].effect if rep.ranking else "",
         best_shrink=_shrink(b.systematic, rep.ranking[0].holdout.systematic) if rep.ranking else float("nan"),
         seconds=time.perf_counter() - t0,
@@ -300,7 +301,8 @@ class ValidationResult:
     ``cases`` has one row per case: ``key, effect, form, seed, base, size, size_quantile, noise,
     noise_sd, effect_gap, verdict, combination, gap_before, gap_after, systematic_before,
     systematic_after, shrink`` (held-out systematic-gap shrink of the named effect, NaN when none
-    is named), ``best`` (top of the ranking), ``best_shrink``, ``seconds``, ``note``; plus
+    is named), ``variant`` (the variant that stood for the named effect, "" for its primary fit),
+    ``best`` (top of the ranking), ``best_shrink``, ``seconds``, ``note``; plus
     ``case`` (= effect) and ``diagnosed`` (= verdict) for older callers.
     """
 

@@ -60,13 +60,38 @@ import numpy as np
 
 from rrfrei.laws.registry import LawSpec, ParamSpec, import_entries
 
-__all__ = ["DiagnosisHints", "EffectSpec", "EFFECTS", "MAX_EFFECTS", "SLIP_NEVER", "compose",
+__all__ = ["DiagnosisHints", "EffectSpec", "Variant", "EFFECTS", "MAX_EFFECTS", "SLIP_NEVER", "compose",
            "register_effect"]
 
 MAX_EFFECTS = 4
 """Most effects one augmented law combines (the positions of the template)."""
 
 TEMPLATE = "rrfrei.laws.effects._augment"
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A second way the gap diagnosis fits an effect: more of its shape parameters free.
+
+    The diagnosis fits an effect as its :class:`DiagnosisHints` say (the *primary* fit) and, for
+    each variant, again with the variant's ``starts``, ``scales`` and ``box`` in their place (an
+    optional parameter is fitted when ``scales`` names it); the variant stands for the effect only
+    when it beats the primary fit by the diagnosis's own block rule (on the held-out blocks, or on
+    the calibration test without held-out data), so the wider shape is taken when the data ask for
+    it and not because it can bend further (:func:`rrfrei.gap.diagnose.diagnose`).
+
+    Attributes
+    ----------
+    name : short label (``"cycles"``), shown as ``effect (name)`` in reports.
+    description : the physics of the variant in one line.
+    starts, scales, box : as in :class:`DiagnosisHints` (the variant's whole set, not a patch).
+    """
+
+    name: str
+    description: str
+    starts: Callable
+    scales: Callable
+    box: Callable = field(default=lambda s: {})
 
 
 @dataclass(frozen=True)
@@ -87,6 +112,7 @@ class DiagnosisHints:
     box : ``box(s) -> dict``, the refit's search box inside the physical bounds (default: those).
     needs_time : the effect can only be judged on a test with real time (velocities).
     order : position in the diagnosis's catalogue (its tables and tie-breaks).
+    variants : further ways to fit the effect (:class:`Variant`), tried after the primary fit.
     """
 
     screen: Callable
@@ -95,6 +121,7 @@ class DiagnosisHints:
     box: Callable = field(default=lambda s: {})
     needs_time: bool = False
     order: int = 100
+    variants: tuple[Variant, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -22,14 +22,16 @@ would.  Energy-based damage of elastomers is the ``deg_travel = 0`` case (the de
 one-parameter kernel bit for bit); ``deg_exp = 1`` (the default) is the travel bit for bit.
 Neutral: ``deg_rate = deg_travel = 0``.
 
-The diagnosis fits ``deg_rate`` and ``deg_travel`` with ``m = 1``: with ``m`` free in ``[0.1,
-2]`` the kernel, refitted to the validation's cycle-count generator form
-(``degradation/cycle_count``, noise-free, largest size), missed it by 1.1 % of the peak force
-(gap 0.019), under the table's 2 % noise, so that form would become one of the kernel's own
-(``tests/test_gap_validate.py``); on the 30 degradation cases of the table it also lowered the
-held-out shrink of the two energy forms (median 0.82 -> 0.70 and 0.79 -> 0.60, one case left
-unexplained: a travel measure fits protocol 1 as well as the work and extrapolates worse) while it
-raised the cycle-count form's (0.40 -> 0.77).  ``m`` stays for calibration.
+The diagnosis fits ``deg_rate`` and ``deg_travel`` with ``m = 1`` (the primary fit), and with
+``m`` free in ``[0.1, 2]`` as the variant ``cycles`` (:class:`rrfrei.laws.effects.Variant`),
+which stands for the effect only when it beats the primary fit on the held-out blocks.  Fitting
+``m`` always was tried first and not kept: on the validation table it raised the cycle-count
+form's held-out shrink (median 0.40 -> 0.77) and lowered the two energy forms' (0.82 -> 0.70,
+0.79 -> 0.60), as a travel measure fits protocol 1 as well as the work and extrapolates worse;
+as a variant chosen on the held-out blocks the energy forms keep the primary fit
+(docs/gap/validation.md).  Refitted to the cycle-count form (noise-free, largest size) the
+variant misses it by about 1 % of the peak force, under the table's 2 % noise: that form no
+longer tests a shape beyond the catalogue's.
 
 State (5): ``[u, f_b, E, E_max, T]`` of the last call.
 """
@@ -37,7 +39,7 @@ State (5): ``[u, f_b, E, E_max, T]`` of the last call.
 import numpy as np
 from numba import njit
 
-from rrfrei.laws.effects import DiagnosisHints, EffectSpec, register_effect
+from rrfrei.laws.effects import DiagnosisHints, EffectSpec, Variant, register_effect
 from rrfrei.laws.effects._screens import force_sign, partial
 from rrfrei.laws.registry import ParamSpec, Prior
 
@@ -76,13 +78,23 @@ def _screen(ctx) -> float:
     return partial(ctx.resid * force_sign(ctx), ctx.energy, [np.abs(ctx.disp)])
 
 
+CYCLES = Variant(
+    "cycles",
+    "low-cycle fatigue: the amplitude exponent m of the travel fitted (Miner over Coffin-Manson)",
+    lambda s: [{"deg_rate": 0.0, "deg_travel": 0.02 / s.disp**m, "deg_exp": m} for m in (0.3, 1.0)]
+    + [{"deg_rate": 0.1 / s.energy, "deg_travel": 0.01 / s.disp**0.3, "deg_exp": 0.3}],
+    lambda s: {"deg_rate": 1.0 / s.energy, "deg_travel": 0.05 / s.disp**0.5, "deg_exp": 0.5},
+    lambda s: {"deg_rate": (0.0, 100.0 / s.energy), "deg_travel": (0.0, 5.0 / min(s.disp, 1.0)),
+               "deg_exp": (0.1, 2.0)})
+
 HINTS = DiagnosisHints(
     _screen,
     lambda s: [{"deg_rate": 0.1 / s.energy, "deg_travel": 0.0},
                {"deg_rate": 0.5 / s.energy, "deg_travel": 0.0},
                {"deg_rate": 0.0, "deg_travel": 0.02 / s.disp}],
     lambda s: {"deg_rate": 1.0 / s.energy, "deg_travel": 0.05 / s.disp},
-    lambda s: {"deg_rate": (0.0, 100.0 / s.energy), "deg_travel": (0.0, 5.0 / s.disp)}, order=1)
+    lambda s: {"deg_rate": (0.0, 100.0 / s.energy), "deg_travel": (0.0, 5.0 / s.disp)}, order=1,
+    variants=(CYCLES,))
 
 
 EFFECT = register_effect(EffectSpec(

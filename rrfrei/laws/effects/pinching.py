@@ -29,6 +29,26 @@ only through the committed peaks, so a cycle at a constant amplitude closes; wit
 (the loop dissipates less).  Before the first step (``F_max = 0`` or ``u_max = 0``) ``g = 1``.
 Neutral: ``pinch = 0`` (any width and angle).
 
+Squeezed toward the line, not toward zero force
+-----------------------------------------------
+In BWBN the pinching slows the hysteretic variable z near ``z = 0`` only, so the force there
+follows the non-hysteretic part of the law, ``alpha k u``: the loop is squeezed toward the line
+of its elastic part, not toward zero force (Foliente 1995, eqs. 4-6).  With ``lam`` (``pinch_line``,
+in [0, 1]) the band blends toward the pinching line itself, whose force is ``kappa u``,
+``kappa = tan(phi) F_max / u_max`` (so ``xi = cos(phi) (f_b - kappa u) / F_max``)::
+
+    F = g f_b + (1 - g) lam kappa u,
+    dF/du = g k_b + f_b dg/du + lam kappa ((1 - g) - u dg/du)
+
+``lam = 1``: ``F - kappa u = g (f_b - kappa u)``, the distance from the line is scaled, the
+line's own force is kept (BWBN's pinching, with ``phi = atan(alpha k u_max / F_max)`` on a law
+whose elastic part is ``alpha k u``); ``lam = 0`` (the default): the band kernel above bit for
+bit.  The line term is an additive force (it is not scaled by other scaling effects) and acts
+only for ``cos(phi) > 1e-6`` (a line at zero displacement carries no force of its own).  The
+diagnosis fits it as the variant ``line`` (``lam``, the band and its angle free, the half-width
+``w <= 1``, ``|phi| <= 1.2``), which stands for the effect only when it beats the primary fit on
+the held-out blocks (:class:`rrfrei.laws.effects.Variant`).
+
 Slack is local: the diagnosis fits the half-width in ``w <= 0.5`` (its box, the physical bound is
 wider), so a band never spans more than half of the previous peaks either side of the line.  A
 softening below the previous peak that reaches out to ``u_max`` is Mullins' (:mod:`.mullins`);
@@ -63,15 +83,15 @@ import math
 import numpy as np
 from numba import njit
 
-from rrfrei.laws.effects import DiagnosisHints, EffectSpec, register_effect
+from rrfrei.laws.effects import DiagnosisHints, EffectSpec, Variant, register_effect
 from rrfrei.laws.effects._screens import force_sign, signed_partial
 from rrfrei.laws.registry import ParamSpec, Prior
 
 
 @njit(cache=True, inline="always")
 def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
-    """Scale by 1 - p b(xi / w), xi = cos(phi) f_b / F_max - sin(phi) u / u_max (contract in
-    :mod:`rrfrei.laws.effects`)."""
+    """Scale by g = 1 - p b(xi / w), xi = cos(phi) f_b / F_max - sin(phi) u / u_max, and add
+    (1 - g) lam kappa u (contract in :mod:`rrfrei.laws.effects`)."""
     fm = sc[so]
     um = sc[so + 1]
     st[so] = max(fm, abs(fb))
@@ -87,6 +107,11 @@ def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
             q = 1.0 - x * x
             gi = 1.0 - pin * q * q
             dgi = 4.0 * pin * x * q / w * (c * kb / fm - s / um)
+            lam = p[po + 5]
+            if lam != 0.0 and c > 1e-6:
+                kap = lam * s / c * fm / um
+                fa += (1.0 - gi) * kap * u
+                ka += kap * ((1.0 - gi) - u * dgi)
             dg = dg * gi + g * dgi
             g = g * gi
     return g, dg, fa, ka
@@ -125,7 +150,15 @@ HINTS = DiagnosisHints(
     lambda s: {"pinch": 0.3, "pinch_width": 0.3, "pinch_angle": 0.5, "slack_gap": 0.1 * s.disp,
                "slack_force": 0.1 * s.force},
     lambda s: {"pinch_width": (0.05, 0.5), "slack_gap": (0.0, 0.5 * s.disp),
-               "slack_force": (0.005 * s.force, 0.5 * s.force)}, order=8)
+               "slack_force": (0.005 * s.force, 0.5 * s.force)}, order=8,
+    variants=(Variant(
+        "line",
+        "BWBN pinching: the band squeezes the loop toward the pinching line's force, not zero force",
+        lambda s: [{"pinch": 0.6, "pinch_width": 0.6, "pinch_angle": 0.3, "pinch_line": 1.0},
+                   {"pinch": 0.5, "pinch_width": 0.4, "pinch_angle": 0.0, "pinch_line": 0.5},
+                   {"pinch": 0.8, "pinch_width": 0.9, "pinch_angle": 0.6, "pinch_line": 1.0}],
+        lambda s: {"pinch": 0.3, "pinch_width": 0.3, "pinch_angle": 0.5, "pinch_line": 0.5},
+        lambda s: {"pinch_width": (0.05, 1.0), "pinch_angle": (-1.2, 1.2), "pinch_line": (0.0, 1.0)}),))
 
 
 EFFECT = register_effect(EffectSpec(
@@ -143,7 +176,10 @@ EFFECT = register_effect(EffectSpec(
                Prior("halfnormal", 0.01), default=0.0),
      ParamSpec("slack_force", "kN", 1e-9, 1e9,
                "force width sigma over which the series slack is taken up",
-               Prior("halfnormal", 1.0), default=1.0)),
+               Prior("halfnormal", 1.0), default=1.0),
+     ParamSpec("pinch_line", "-", 0.0, 1.0,
+               "blend lam of the band toward the pinching line's force (0: toward zero force, "
+               "1: BWBN, the line's force kept)", Prior("uniform", 0.0, 1.0), default=0.0)),
     5, "pinching: slack near zero force (BWBN), where the loop crosses a line through the origin",
-    (0.0, 0.5, 0.0, 0.0, 1.0), apply=apply, hints=HINTS, compliance=compliance,
+    (0.0, 0.5, 0.0, 0.0, 1.0, 0.0), apply=apply, hints=HINTS, compliance=compliance,
     compliance_param=3))
