@@ -40,8 +40,9 @@ def test_the_three_effects_are_catalogue_candidates_after_the_six_earlier_ones()
     for name, order in (("stiffening", 7), ("pinching", 8), ("scragging", 9)):
         assert EFFECTS[name].hints.order == order
     assert get("plasticity+stiffening").param_names[-3:] == ("stiff_k", "stiff_onset", "stiff_exp")
-    assert get("plasticity+pinching").param_names[-6:] == ("pinch", "pinch_width", "pinch_angle", "slack_gap",
-                                                           "slack_force", "pinch_line")
+    assert get("plasticity+pinching").param_names[-8:] == ("pinch", "pinch_width", "pinch_angle", "slack_gap",
+                                                           "slack_force", "pinch_line", "pinch_slope",
+                                                           "pinch_force")
     assert get("plasticity+scragging").param_names[-3:] == ("scrag", "scrag_disp", "scrag_shape")
     assert get("plasticity+stiffening").param("stiff_k").lower == 0.0  # stiffening only
 
@@ -155,13 +156,35 @@ def test_pinching_toward_the_line_keeps_the_line_force_and_scales_the_distance_f
     assert (g < 0.99).sum() > 20
 
 
+@pytest.mark.parametrize("base", ["plasticity", "bouc_wen"])
+def test_bwbn_pinching_squeezes_the_hysteretic_part_in_a_band_of_fixed_force_width(base):
+    """With a line of fixed slope kappa and a band of fixed force width w_F: F - kappa u =
+    g (f_b - kappa u), g = 1 - p (1 - x^2)^2, x = (f_b - kappa u) / w_F; on the bilinear law with
+    kappa = alpha k the band sits on z = 0, so the force at the peaks (z = +-1) is untouched."""
+    vals = PL if base == "plasticity" else BW
+    kap, wf, p = vals["alpha1"] * vals["k_init"], 0.4 * vals["qd"], 0.7
+    fb = simulate_force(base, vals, U1)
+    f = simulate_force(f"{base}+pinching", {**vals, **PINCH, "pinch": p, "pinch_slope": kap,
+                                            "pinch_force": wf, "pinch_line": 1.0}, U1)
+    x = (fb - kap * U1) / wf
+    g = np.where(np.abs(x) < 1, 1 - p * (1 - np.minimum(x * x, 1)) ** 2, 1.0)
+    np.testing.assert_allclose(f, kap * U1 + g * (fb - kap * U1), rtol=1e-12, atol=1e-13)
+    assert (g < 0.9).sum() > 20
+    peaks = np.abs(fb - kap * U1) > 0.99 * vals["qd"]
+    assert peaks.sum() > 20 and np.array_equal(f[peaks], fb[peaks])
+
+
 def test_pinching_toward_the_line_returns_the_tangent_of_its_force():
     """The consistent tangent (module docstring) against the force's own central difference, on
     the plasticity base, whose own tangent is the derivative of its force away from its kinks
     (``bouc_wen``'s is OpenSees' tangent of the element, not the derivative of its step)."""
     base = "plasticity"
-    vals = {**(PL if base == "plasticity" else BW), **PINCH, "pinch_angle": 0.4, "pinch_width": 0.7,
-            "pinch_line": 1.0}
+    for extra in ({"pinch_angle": 0.4, "pinch_width": 0.7, "pinch_line": 1.0},
+                  {"pinch_slope": 20.0, "pinch_force": 0.3, "pinch_line": 0.8}):
+        _check_tangent(base, {**PL, **PINCH, **extra})
+
+
+def _check_tangent(base, vals):
     spec = get(f"{base}+pinching")
     p = spec.pack(vals)
     sc = np.array(spec.initial_state, dtype=float)

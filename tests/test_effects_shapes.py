@@ -67,6 +67,8 @@ def _step_force(name, values, u, v, dt=0.05):
     # the smooth rollover of the diagnosis's variants (2026-11-27)
     ("rollover", {"roll_k": -20.0, "roll_onset": 0.01}, {"roll_exp": 1.0}),
     ("pinching", {"pinch": 0.5, "pinch_width": 0.6, "pinch_angle": 0.4}, {"pinch_line": 0.0}),
+    ("pinching", {"pinch": 0.5, "pinch_width": 0.6, "pinch_angle": 0.4, "pinch_line": 0.7},
+     {"pinch_slope": 30.0, "pinch_force": 0.0}),
     ("scragging", {"scrag": 0.3, "scrag_disp": 0.01}, {"scrag_shape": 1.0}),
 ])
 def test_a_shape_parameter_at_its_default_is_the_former_kernel_bit_for_bit(base, name, former, default):

@@ -11,7 +11,11 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    ``arviz.psislw``) and, with held-out data, the reduction of each held-out block's squared
    error and the pooled held-out systematic-gap shrink with its block-bootstrap interval.  The
    old summaries (elpd and held-out lpd differences with their paired se over cycles) are kept
-   for display;
+   for display.  Once every effect has its fit, each effect's variants
+   (:class:`rrfrei.laws.effects.Variant`: a shape parameter more) are fitted; a variant stands
+   for its effect when it beats the primary fit by the block rank test on the held-out blocks
+   (the calibration blocks without held-out data), so a wider shape is taken when the data ask
+   for it, not because it bends further (:func:`_variant_or_primary`);
 3. an effect is *significant* by the block rule of :mod:`rrfrei.gap.decision`: sign or
    Wilcoxon signed-rank test over the calibration blocks (and > 4 nats in total) and, with
    held-out data, over the held-out blocks, with the bootstrap lower bound of the held-out shrink
@@ -674,13 +678,21 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
             except NUMERICAL_ERRORS as exc:
                 skipped[e] = _failure(step, exc)
             else:
-                fit, score = _variant_or_primary(model, sc, ck, e, fit, score, data, budget, seed,
-                                                 starts, base, screens.get(e, float("nan")), bm, notes)
                 fits[fit.name] = fit
                 scores.append(score)
-                if score.variant:
-                    chosen[e] = score.variant
             bar.update()
+        # the variants once every effect has its primary fit, so that a time budget spent on them
+        # never leaves an effect unevaluated
+        for i, score in enumerate(scores):
+            if not model.variants(score.effect):
+                continue
+            bar.set_postfix_str(f"variants of {score.effect}")
+            fit, scores[i] = _variant_or_primary(model, sc, ck, score.effect, fits[score.law], score, data,
+                                                 budget, seed, starts, base,
+                                                 screens.get(score.effect, float("nan")), bm, notes)
+            fits[fit.name] = fit
+            if scores[i].variant:
+                chosen[score.effect] = scores[i].variant
         key = (lambda s: s.delta_holdout) if sc.holdout else (lambda s: s.delta_elpd)
         ranking = tuple(sorted(scores, key=lambda s: -key(s) if math.isfinite(key(s)) else math.inf))
         sig = [s for s in ranking if s.significant]

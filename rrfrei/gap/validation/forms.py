@@ -55,7 +55,10 @@ scragging     first_large_cycle   F_b (1 - s / (1 + exp(-(u_max - 0.8 DD) / 0.05
 ``1 / (1 + c E_max)`` in the base law's cumulative work, mullins linear in ``1 - r``, rollover a
 kinked linear hinge, rate ``c sgn(v) |v|^a``, asymmetry ``1 + a sgn(F_b)``, slip a rigid-plastic
 slider solved by Newton; the new effects of issue 12 (stiffening, pinching, scragging) have their
-own kernels, and these forms were written from the issue's physics, not from them.)
+own kernels, and these forms were written from the issue's physics, not from them.  The kernels
+have since grown shape parameters and the diagnosis fits some of them as *variants*
+(:class:`rrfrei.laws.effects.Variant`); how far each form stays from the catalogue as fitted is
+measured in docs/gap/validation.md, and the forms were not changed.)
 """
 
 from __future__ import annotations
