@@ -545,8 +545,9 @@ class ShakeTableGap:
             "combination": list(self.combination),
             "where": [{k: _num(v) if isinstance(v, float) else v for k, v in row.items()}
                       for row in self.where.to_dict("records")],
-            "ranking": [{"effect": e.effect, "delta_elpd": _num(e.delta_elpd), "se": _num(e.se),
-                         "delta_holdout": _num(e.delta_holdout), "se_holdout": _num(e.se_holdout),
+            "ranking": [{"effect": e.effect, "variant": e.variant, "delta_elpd": _num(e.delta_elpd),
+                         "se": _num(e.se), "delta_holdout": _num(e.delta_holdout),
+                         "se_holdout": _num(e.se_holdout),
                          "shrink_calibration": _num(e.shrink_calibration),
                          "shrink_holdout": _num(e.shrink_holdout), "significant": bool(e.significant)}
                         for e in rep.ranking],

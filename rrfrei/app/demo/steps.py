@@ -202,8 +202,9 @@ def step_gap(ctx: DemoContext, sec: Section) -> None:
     ctx.results["gap"] = rep
     rows = []
     for e in rep.ranking:
-        rows.append({"effect": e.effect, "law": e.law, "screen": e.screen, "delta_elpd": e.delta_elpd,
-                     "se": e.se, "delta_holdout": e.delta_holdout, "se_holdout": e.se_holdout,
+        rows.append({"effect": e.effect, "variant": e.variant or "-", "law": e.law, "screen": e.screen,
+                     "delta_elpd": e.delta_elpd, "se": e.se, "delta_holdout": e.delta_holdout,
+                     "se_holdout": e.se_holdout,
                      "gap_calibration": e.calibration.gap, "systematic_calibration": e.calibration.systematic,
                      "gap_holdout": e.holdout.gap if e.holdout is not None else float("nan"),
                      "shrink_calibration": e.shrink_calibration, "shrink_holdout": e.shrink_holdout,
