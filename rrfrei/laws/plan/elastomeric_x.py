@@ -25,8 +25,9 @@ the 2x2 system by Cramer's rule, iterating while ||dz||_2 >= 1e-8 and iter < 100
 when |J11| or |J22| <= DBL_EPSILON (zero Jacobian), -2 when iter reaches 100; the trial z keeps
 the iterate reached, as the element's member does.  Then (l.643-666), with the increment ratios
 r12 = d1/d2 and r21 = d2/d1 (both 0 when d1 d2 == 0, and, a deviation from OpenSees, when
-a ratio, or the tangent built from it, overflows: a component below ~1e-300 of the other,
-where OpenSees' tangent is inf or nan; the force is unchanged) and the t_i of the last iteration::
+a ratio exceeds ``RATIO_MAX`` = 1e100 or the tangent built from it overflows: a component below
+1e-100 of the other, where OpenSees' tangent is beyond 1e100 kN/m, inf or nan, and a Newmark step
+on it overflows; the force is unchanged) and the t_i of the last iteration::
 
     dz1/du1 = (1/u_y)(1   - z1 (z1 t1 + z2 t2 r21))    dz1/du2 = (1/u_y)(r12 - z1 (z1 t1 r12 + z2 t2))
     dz2/du1 = (1/u_y)(r21 - z2 (z1 t1 + z2 t2 r21))    dz2/du2 = (1/u_y)(1   - z2 (z1 t1 r12 + z2 t2))
@@ -84,6 +85,9 @@ from rrfrei.laws.elastomeric_x import (
     stiffness,
 )
 from rrfrei.laws.plan.registry import PlanLawSpec, register
+
+RATIO_MAX = 1e100
+"""Largest ratio of the two increment components kept in the tangent (module docstring)."""
 
 
 @njit(cache=True, error_model="numpy")
@@ -157,6 +161,12 @@ def step(p, sc, u, v, dt, st, f, k):
             if d1 * d2 != 0.0:
                 r12 = d1 / d2
                 r21 = d2 / d1
+                if not (abs(r12) <= RATIO_MAX and abs(r21) <= RATIO_MAX):
+                    # a component below 1e-100 of the other is the exact zero it is physically:
+                    # OpenSees' tangent there is finite but beyond 1e100 kN/m, and a Newmark step
+                    # on it overflows (hypothesis: an azimuth of 1e-308 rad, d2 ~ 1e-310 d1)
+                    r12 = 0.0
+                    r21 = 0.0
             dz11 = ruy * (1.0 - z1 * (z1 * t1 + z2 * t2 * r21))
             dz12 = ruy * (r12 - z1 * (z1 * t1 * r12 + z2 * t2))
             dz21 = ruy * (r21 - z2 * (z1 * t1 + z2 * t2 * r21))
