@@ -375,6 +375,21 @@ def _score(sc: _Scorer, effect: str, fit: FitResult, ref: FitResult, screen: flo
                        blocks_calibration=cal_ev, blocks_holdout=ho_ev, shrink_ci=sh_ev, why=why)
 
 
+def _gain(sc: _Scorer, s: EffectScore) -> float:
+    """What effects are ranked by: the held-out lpd gain with held-out data, else the calibration
+    test's leave-one-block-out elpd gain."""
+    return s.delta_holdout if sc.holdout else s.delta_elpd
+
+
+def _beats(sc: _Scorer, a: FitResult, b: FitResult) -> bool:
+    """``a`` beats ``b`` by the block rank test of :mod:`rrfrei.gap.decision`: over the held-out
+    blocks' squared-error reductions with held-out data, else over the calibration test's
+    leave-one-block-out elpd gains."""
+    if sc.holdout:
+        return dec.rank_evidence(sc.parts(a, b).gains).passes()
+    return dec.rank_evidence(sc.loco(a) - sc.loco(b)).passes()
+
+
 def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: str, fit: FitResult,
                         score: EffectScore, data, budget: TimeBudget, seed: int, starts, base: FitResult,
                         screen: float, bm, notes: list[str]) -> tuple[FitResult, EffectScore]:
@@ -402,7 +417,6 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
     if not score.significant and math.isfinite(trace) and trace < VARIANT_TRACE:
         return fit, score
     best_fit, best = fit, score
-    key = (lambda s: s.delta_holdout) if sc.holdout else (lambda s: s.delta_elpd)
     for v in names:
         if budget.expired():
             notes.append(f"variant {v!r} of {effect} not tried: time budget")
@@ -412,11 +426,7 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
             vfit = _fit_or_restore(ck, f"effect-{effect}:{v}", model.augment([effect], variants={effect: v}),
                                    data, budget, seed=seed, start=starts)
             step = f"scoring of {vfit.name} ({v})"
-            if sc.holdout:
-                wins = dec.rank_evidence(sc.parts(vfit, fit).gains).passes()
-            else:
-                wins = dec.rank_evidence(sc.loco(vfit) - sc.loco(fit)).passes()
-            if not wins:
+            if not _beats(sc, vfit, fit):
                 continue
             vscore = replace(_score(sc, effect, vfit, base, screen, bm), variant=v)
         except BudgetExceeded:
@@ -425,7 +435,7 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
         except NUMERICAL_ERRORS as exc:
             notes.append(f"variant {v!r} of {effect} left out: {_failure(step, exc)}")
             continue
-        if best is score or key(vscore) > key(best):
+        if best is score or _gain(sc, vscore) > _gain(sc, best):
             best_fit, best = vfit, vscore
     if best is not score:
         notes.append(f"{effect} fitted as its variant {best.variant!r}: it beats the primary fit on the "
@@ -453,10 +463,8 @@ def _parsimonious(sc: _Scorer, fits: dict, sig: list[EffectScore]) -> tuple[str,
     """
     leader = sig[0]
 
-    def beats(a: EffectScore, b: EffectScore) -> bool:
-        return dec.rank_evidence(sc.parts(fits[a.law], fits[b.law]).gains).passes()
-
-    admissible = [o for i, o in enumerate(sig) if i == 0 or not any(beats(a, o) for a in sig[:i])]
+    admissible = [o for i, o in enumerate(sig)
+                  if i == 0 or not any(_beats(sc, fits[a.law], fits[o.law]) for a in sig[:i])]
     best = min(admissible, key=lambda o: (_n_free(fits[o.law]), sig.index(o)))
     if best is leader:
         return leader.effect, ""
@@ -652,7 +660,6 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
         screens = screen_all(ctx) if ctx is not None else {e: float("nan") for e in known}
         bar.update()
         fits: dict[str, FitResult] = {base.name: base}
-        chosen: dict[str, str] = {}  # effect -> the variant that stands for it
         starts: list[FitResult] | None = None
         scores: list[EffectScore] = []
         for e in effects:
@@ -704,10 +711,9 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                                                  budget, seed, starts, base,
                                                  screens.get(score.effect, float("nan")), bm, notes)
             fits[fit.name] = fit
-            if scores[i].variant:
-                chosen[score.effect] = scores[i].variant
-        key = (lambda s: s.delta_holdout) if sc.holdout else (lambda s: s.delta_elpd)
-        ranking = tuple(sorted(scores, key=lambda s: -key(s) if math.isfinite(key(s)) else math.inf))
+        chosen = {s.effect: s.variant for s in scores if s.variant}  # effect -> the variant standing for it
+        ranking = tuple(sorted(scores, key=lambda s: -_gain(sc, s) if math.isfinite(_gain(sc, s))
+                               else math.inf))
         sig = [s for s in ranking if s.significant]
         diagnosis = "none"
         tied: list[str] = []
@@ -721,7 +727,7 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                 win = fits[sig[0].law]
                 for other in sig[1:]:
                     if other.effect in CONFOUNDED or diagnosis in CONFOUNDED:
-                        if not dec.rank_evidence(sc.loco(win) - sc.loco(fits[other.law])).passes():
+                        if not _beats(sc, win, fits[other.law]):
                             tied.append(other.effect)
                 if tied:
                     notes.append(
@@ -773,7 +779,7 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                 cand = [c for c in cand if c[0].significant]
                 if not cand:
                     break
-                best, fit = max(cand, key=lambda c: key(c[0]))
+                best, fit = max(cand, key=lambda c: _gain(sc, c[0]))
                 combination.append(best.effect)
                 steps.append(best)
                 final = (best.calibration, best.holdout)
