@@ -27,6 +27,16 @@ def powabs(x, e):
 
 
 @njit(cache=True, inline="always")
+def power_excess(k, onset, n, ex):
+    """(force magnitude, tangent) ``(k u_s (e / u_s)^n / n, k (e / u_s)^(n - 1))`` of a power
+    ``n`` of the excess ``e = ex > 0`` over an onset ``u_s = onset > 0``: the shape of the
+    ``stiffening`` effect and, with ``k < 0``, of the smooth ``rollover``."""
+    r = ex / onset
+    t = r ** (n - 1.0)
+    return k * onset * t * r / n, k * t
+
+
+@njit(cache=True, inline="always")
 def increment(i, disp, time, use_time, substeps, u_prev, t_prev):
     """(du, v, dt) of sub-increment steps into sample ``i`` (see :func:`rrfrei.laws._history.drive`).
 

@@ -27,6 +27,7 @@ Elastic (path independent).  Neutral: ``k_r = 0``.  No state.
 import numpy as np
 from numba import njit
 
+from rrfrei.laws._util import power_excess
 from rrfrei.laws.effects import DiagnosisHints, EffectSpec, Variant, register_effect
 from rrfrei.laws.effects._screens import partial
 from rrfrei.laws.registry import ParamSpec, Prior
@@ -44,10 +45,9 @@ def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
             fa += p[po] * ex * (1.0 if u > 0.0 else -1.0)
             ka += p[po]
         else:
-            r = ex / ur
-            t = r ** (n - 1.0)
-            fa += p[po] * ur * t * r / n * (1.0 if u > 0.0 else -1.0)
-            ka += p[po] * t
+            fe, ke = power_excess(p[po], ur, n, ex)
+            fa += fe * (1.0 if u > 0.0 else -1.0)
+            ka += ke
     return g, dg, fa, ka
 
 

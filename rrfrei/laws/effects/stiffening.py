@@ -22,6 +22,7 @@ The diagnosis fits ``1.5 <= n <= 6`` (its box) besides ``k_s`` and ``u_s``.
 import numpy as np
 from numba import njit
 
+from rrfrei.laws._util import power_excess
 from rrfrei.laws.effects import DiagnosisHints, EffectSpec, register_effect
 from rrfrei.laws.effects._screens import signed_partial
 from rrfrei.laws.registry import ParamSpec, Prior
@@ -39,10 +40,9 @@ def apply(p, po, sc, st, so, u, v, dt, fb, kb, g, dg, fa, ka):
             fa += 0.5 * k * ex * ex / us * (1.0 if u > 0.0 else -1.0)
             ka += k * ex / us
         else:
-            r = ex / us
-            t = r ** (n - 1.0)
-            fa += k * us * t * r / n * (1.0 if u > 0.0 else -1.0)
-            ka += k * t
+            fe, ke = power_excess(k, us, n, ex)
+            fa += fe * (1.0 if u > 0.0 else -1.0)
+            ka += ke
     return g, dg, fa, ka
 
 
