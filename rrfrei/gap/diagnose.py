@@ -381,12 +381,17 @@ def _gain(sc: _Scorer, s: EffectScore) -> float:
     return s.delta_holdout if sc.holdout else s.delta_elpd
 
 
+def _beats_held_out(sc: _Scorer, a: FitResult, b: FitResult) -> bool:
+    """``a`` beats ``b`` by the block rank test of :mod:`rrfrei.gap.decision` over the held-out
+    blocks' squared-error reductions."""
+    return dec.rank_evidence(sc.parts(a, b).gains).passes()
+
+
 def _beats(sc: _Scorer, a: FitResult, b: FitResult) -> bool:
-    """``a`` beats ``b`` by the block rank test of :mod:`rrfrei.gap.decision`: over the held-out
-    blocks' squared-error reductions with held-out data, else over the calibration test's
-    leave-one-block-out elpd gains."""
+    """``a`` beats ``b`` by the block rank test: on the held-out blocks with held-out data
+    (:func:`_beats_held_out`), else over the calibration test's leave-one-block-out elpd gains."""
     if sc.holdout:
-        return dec.rank_evidence(sc.parts(a, b).gains).passes()
+        return _beats_held_out(sc, a, b)
     return dec.rank_evidence(sc.loco(a) - sc.loco(b)).passes()
 
 
@@ -464,7 +469,7 @@ def _parsimonious(sc: _Scorer, fits: dict, sig: list[EffectScore]) -> tuple[str,
     leader = sig[0]
 
     admissible = [o for i, o in enumerate(sig)
-                  if i == 0 or not any(_beats(sc, fits[a.law], fits[o.law]) for a in sig[:i])]
+                  if i == 0 or not any(_beats_held_out(sc, fits[a.law], fits[o.law]) for a in sig[:i])]
     best = min(admissible, key=lambda o: (_n_free(fits[o.law]), sig.index(o)))
     if best is leader:
         return leader.effect, ""
