@@ -608,7 +608,6 @@ SPEC = register(
         state_size=19,
         description="OpenSees ElastomericBearingBoucWen3d shear: vector Bouc-Wen z, local "
                     "Newton on its two components, per-component hardening.",
-        opensees_element="elastomericBearingBoucWen",
         static_calls=2,
         settled_index=SETTLED,
         history=drive,

@@ -27,7 +27,7 @@ integrator) are templates instantiated per law (:mod:`rrfrei.laws.specialise`) w
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -45,7 +45,6 @@ class PlanLawSpec:
     step : the jitted step kernel (contract in the module docstring).
     state_size : length of the state vector.
     description : one line, with the OpenSees source it ports.
-    opensees_element : the openseespy 3-D element command it matches ("" for none).
     initial_state : the virgin state (zeros when not given).
     static_calls : 1, or 2 for a law whose step starts from the trial state on entry (a local
         iteration from the trial z): the history driver then calls it twice per step, as
@@ -67,7 +66,6 @@ class PlanLawSpec:
     step: Callable = field(compare=False, repr=False)
     state_size: int
     description: str
-    opensees_element: str = ""
     initial_state: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
     static_calls: int = 1
     settled_index: int = -1
@@ -98,6 +96,21 @@ class PlanLawSpec:
     def law(self) -> _laws.LawSpec:
         """The unidirectional law: parameter names, units, bounds, priors, ``pack``."""
         return _laws.get(self.name)
+
+    @property
+    def opensees_element(self) -> str:
+        """The OpenSees element whose coupled 3-D form the plan law ports: the unidirectional
+        law's (``LawSpec.opensees``), "" for none."""
+        return self.law.opensees_element
+
+    def opensees_args(self, params: Mapping[str, float] | np.ndarray, *, orient: Sequence[float],
+                      materials: Sequence[int] | None = None) -> list:
+        """Arguments of ``ops.element(self.opensees_element, tag, i_node, j_node, *args)`` that
+        build the law at ``params`` in a 3-D model (``-ndm 3 -ndf 6``), both shear directions
+        active: the unidirectional law's argument list (:meth:`rrfrei.laws.LawSpec.opensees_args`)
+        with ``ndm = 3``; ``orient`` puts local y and z (the two shear directions) along the
+        plan axes."""
+        return self.law.opensees_args(params, ndm=3, orient=orient, materials=materials)
 
 
 _REGISTRY: dict[str, PlanLawSpec] = {}
