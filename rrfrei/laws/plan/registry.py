@@ -166,8 +166,7 @@ def get(name: str | PlanLawSpec | _laws.LawSpec) -> PlanLawSpec:
 NONFINITE_DISP = -5
 """Status of a whole-history driver whose displacement history holds a non-finite value, with
 the first such sample as its index: the drivers scan ``disp`` before the first step (inside the
-compiled call, where the numpy check cost ``simulate_force`` 60-80 us after another program had
-run, about 4 % of a 5,000-step bouc_wen history), and ``simulate_force`` raises the ValueError
+compiled call, cheaper than a numpy check before it), and ``simulate_force`` raises the ValueError
 of :func:`rrfrei.simulate.as_plan_history` that names the sample and component."""
 
 HISTORY = "rrfrei.laws.plan._history"
