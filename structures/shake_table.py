@@ -16,8 +16,9 @@ Two layouts are read by :func:`read_run`:
    relative to the table [m]), ``u`` (table acceleration [m/s^2]) and optionally ``du`` (table
    displacement [m]), whitespace-separated values (one per line, or all on one line as in some
    BNCS ``d`` files), ``.txt`` or ``.txt.gz``; the sampling rate and the
-   level masses come from a TOML sidecar (``<folder>.toml`` or ``run.toml`` inside it) or the
-   arguments ``rate_hz=`` and ``masses=`` / ``weights=``.
+   level masses come from a TOML sidecar (``run.toml`` inside the folder or ``<folder>.toml``
+   next to it) or the arguments ``rate_hz=`` and ``masses=`` / ``weights=``; ``a1=`` (sidecar
+   ``[levels] a1``) says whether ``a1`` is the roof (default) or the base slab.
 2. **CSV layout**: ``time_s``, ``table_accel_<unit>``, optional ``table_disp_<unit>``, and per
    level ``<LEVEL>_accel_abs_<unit>`` and ``<LEVEL>_disp_rel_<unit>`` (accelerations ``mps2``,
    ``cmps2``, ``g``; displacements ``m``, ``cm``, ``mm``), plain or gzip-compressed, with a TOML
@@ -32,13 +33,22 @@ Two layouts are read by :func:`read_run`:
        accel = "mps2"
        disp = "m"
 
+Every list of levels (names, masses, weights) runs base slab first unless ``level_order =
+"roof-first"`` (``[levels] level_order`` or the argument ``level_order=``).  **The sidecar
+format, its keys and units, an example for a raw folder and what the reader checks:
+``docs/shake_table_data.md``** (command line: ``rrfrei shake-table --rate-hz --weights
+--weight-unit --masses --level-order --a1``).
+
 Consistency (:func:`check_consistency`, run by :func:`read_run`): for every level the absolute
 acceleration must equal the second derivative of the relative displacement plus the table
 acceleration, a_i = d''_i + a_g, and the table displacement must satisfy du'' = a_g; both sides
 are low-passed identically (zero-phase Butterworth, 5 Hz by default) since double differentiation
 amplifies noise.  A failing check gives a :class:`ConsistencyWarning` and is kept in
 ``run.consistency``; malformed input (missing file or column, bad value, unknown unit) is a
-``ValueError`` naming the file, column and value.
+``ValueError`` naming the file, column and value.  A missing rate or masses, and channels whose
+failure is that of a wrong sampling rate (one common scale (f/f')^2 between d'' and the
+accelerations), raise :class:`MetadataError`.  :func:`check_level_order` warns
+(:class:`LevelOrderWarning`) when the levels look upside down or the masses reversed.
 
 The isolation system (:func:`isolation_test`): with every level above the isolators in the free
 body, horizontal equilibrium gives the force the isolators apply to the building
@@ -903,7 +913,7 @@ def _read_csv(path: Path, name, masses, weights, weight_unit, level_order, rate_
                 isinstance(value, (int, float)) and abs(t_rate - float(value)) <= 1e-6 * t_rate):
             raise ValueError(f"{where}: {given} = {value!r} Hz disagrees with its column {tcol!r} "
                              f"({t_rate:.6g} Hz); a CSV's sampling rate is its time column")
-    meta["rate_source"] = f"column {tcol!r} of {where}"
+    meta["rate_source"] = f"its column {tcol!r}"
     return ShakeTableRun(
         name=name or str(side.get("name", stem)),
         time=time,

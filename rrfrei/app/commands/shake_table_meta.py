@@ -158,6 +158,8 @@ def read_runs(specs: Sequence[str], args, *, prog: str = "rrfrei shake-table"
         for w in caught:
             if issubclass(w.category, ConsistencyWarning):
                 note = _one_line(w.message)
+                for said, option in _OPTION_OF.items():
+                    note = note.replace(said, option)
                 print(f"{prog}: warning: {note}", file=sys.stderr)
                 notes.append(note)
         if not (str(spec) in available_runs() and not Path(str(spec)).exists()):
