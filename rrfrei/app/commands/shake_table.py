@@ -21,7 +21,7 @@ Example:
   rrfrei shake-table --out st --json            # the bundled BNCS runs: CNP100, LAC100, ICA50 -> ICA100
   rrfrei shake-table CNP100 LAC100 ICA50 ICA100 --calibrate ICA50 --holdout ICA100 --law bouc_wen --out st
   rrfrei shake-table run1/ run2.csv --calibrate run1 --holdout run2 --building bldg.toml --out st
-  rrfrei shake-table raw/ICA50 raw/ICA100 --rate-hz 200 --level-order roof-first \
+  rrfrei shake-table raw/ICA50 raw/ICA100 --rate-hz 200 --level-order roof-first \\
       --weights 593.3,1078.1,1036.3,703,674,2275.1 --weight-unit kN --out st   # raw BNCS folders
 
 A rerun with the same --out reuses the finished isolator fits (DIR/checkpoint).

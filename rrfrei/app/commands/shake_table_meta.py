@@ -13,7 +13,6 @@ import re
 import sys
 import warnings
 from collections.abc import Sequence
-from pathlib import Path
 
 from structures.shake_table import (
     A1_LEVELS,
@@ -23,7 +22,6 @@ from structures.shake_table import (
     ConsistencyWarning,
     MetadataError,
     ShakeTableRun,
-    available_runs,
     open_run,
 )
 
@@ -127,11 +125,6 @@ _OPTION_OF = {"the argument rate_hz": "--rate-hz", "the argument weights": "--we
               "the argument masses": "--masses", "the argument level_order": "--level-order"}
 
 
-def _cli(source: str) -> str:
-    """The reader's "the argument rate_hz" as the option that gave it."""
-    return _OPTION_OF.get(source, source)
-
-
 def _one_line(message: str) -> str:
     return "; ".join(s.strip() for s in str(message).splitlines() if s.strip())
 
@@ -162,12 +155,5 @@ def read_runs(specs: Sequence[str], args, *, prog: str = "rrfrei shake-table"
                     note = note.replace(said, option)
                 print(f"{prog}: warning: {note}", file=sys.stderr)
                 notes.append(note)
-        if not (str(spec) in available_runs() and not Path(str(spec)).exists()):
-            m = run.meta
-            print(f"{prog}: read {run.name} ({run.source}): {run.time.size} samples at {run.rate_hz:.6g} Hz "
-                  f"(from {_cli(m.get('rate_source', '?'))}), {run.n_levels} levels bottom-up "
-                  f"{', '.join(run.level_names)}, masses {', '.join(f'{x:.4g}' for x in run.masses)} t "
-                  f"(from {_cli(m.get('masses_source', '?'))}, listed {m.get('level_order', 'base-first')})",
-                  file=sys.stderr)
         runs.append(run)
     return runs, notes
