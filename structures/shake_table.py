@@ -241,7 +241,13 @@ class ConsistencyReport:
         head = (f"consistency after a {self.cutoff_hz:g} Hz low-pass: "
                 f"{int(self.table['passed'].sum())}/{len(self.table)} checks pass "
                 f"(worst relative error {worst:.3g}, tolerance {self.tol:g})")
-        return "\n".join([head, *self.failures])
+        lines = [head, *self.failures]
+        if not self.ok and self.scale_correlation >= 0.9 and abs(math.sqrt(self.scale) - 1.0) > 0.02:
+            lines.append(f"every channel shows one scale (d'' is {1 / self.scale:.3g} x the accelerations, "
+                         f"correlation >= {self.scale_correlation:.4f}): the data match a sampling rate of "
+                         f"about {self.implied_rate_hz:.3g} Hz, not {self.rate_hz:.3g} Hz (or displacements "
+                         "in another unit)")
+        return "\n".join(lines)
 
 
 def _scale(derived: np.ndarray, measured: np.ndarray) -> tuple[float, float]:

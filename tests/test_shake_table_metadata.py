@@ -156,6 +156,8 @@ def test_a_rate_a_little_off_is_a_warning_not_an_error(ica50, tmp_path):
         run = read_run(path)
     assert run.consistency.implied_rate_hz == pytest.approx(50.0, rel=0.02)
     assert not run.consistency.rate_looks_wrong()
+    if not run.consistency.ok:  # the warning names the rate the data imply
+        assert "sampling rate of about 5" in str(run.consistency)
 
 
 def test_a_rate_that_disagrees_with_a_csv_time_column_is_an_error(ica50, tmp_path):
