@@ -914,7 +914,8 @@ def _read_csv(path: Path, name, masses, weights, weight_unit, level_order, rate_
                               "the argument weights" if weights is not None else side.get("_path", where))}
     time = column(tcol) * tfac
     t_rate = (time.size - 1) / (time[-1] - time[0]) if time.size > 1 and time[-1] > time[0] else math.nan
-    for value, given in ((rate_hz, "rate_hz"), (side.get("rate_hz"), f"rate_hz in {side.get('_path')}")):
+    stated = ((rate_hz, "the argument rate_hz"), (side.get("rate_hz"), f"rate_hz in {side.get('_path')}"))
+    for value, given in stated:
         if value is not None and math.isfinite(t_rate) and not (
                 isinstance(value, (int, float)) and abs(t_rate - float(value)) <= 1e-6 * t_rate):
             raise ValueError(f"{where}: {given} = {value!r} Hz disagrees with its column {tcol!r} "

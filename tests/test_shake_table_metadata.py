@@ -263,3 +263,8 @@ def test_the_bundled_names_still_resolve(capsys):
         warnings.simplefilter("ignore", ConsistencyWarning)
         (run,), _ = _read("ICA50")
     assert run.name == "ICA50"
+
+
+def test_a_rate_option_that_contradicts_a_csv_time_column_names_the_option(capsys):
+    code, err = _cli(capsys, "ICA50", "--rate-hz", "200")
+    assert code == 2 and "--rate-hz = 200.0 Hz disagrees with its column 'time_s' (50 Hz)" in err

@@ -125,6 +125,13 @@ _OPTION_OF = {"the argument rate_hz": "--rate-hz", "the argument weights": "--we
               "the argument masses": "--masses", "the argument level_order": "--level-order"}
 
 
+def _options(text: str) -> str:
+    """The reader's words for its arguments ("the argument rate_hz") as the options that gave them."""
+    for said, option in _OPTION_OF.items():
+        text = text.replace(said, option)
+    return text
+
+
 def _one_line(message: str) -> str:
     return "; ".join(s.strip() for s in str(message).splitlines() if s.strip())
 
@@ -144,15 +151,12 @@ def read_runs(specs: Sequence[str], args, *, prog: str = "rrfrei shake-table"
                 run = open_run(spec, **kw)
             except MetadataError as exc:
                 hint = _CLI_HINT[exc.what].format(sidecar=exc.sidecar or "its sidecar")
-                fact = exc.fact
-                for said, option in _OPTION_OF.items():
-                    fact = fact.replace(said, option)
-                raise ValueError(f"{fact}: {hint} ({DOC})") from None
+                raise ValueError(f"{_options(exc.fact)}: {hint} ({DOC})") from None
+            except ValueError as exc:
+                raise ValueError(_options(str(exc))) from None
         for w in caught:
             if issubclass(w.category, ConsistencyWarning):
-                note = _one_line(w.message)
-                for said, option in _OPTION_OF.items():
-                    note = note.replace(said, option)
+                note = _options(_one_line(w.message))
                 print(f"{prog}: warning: {note}", file=sys.stderr)
                 notes.append(note)
         runs.append(run)
