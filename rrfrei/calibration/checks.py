@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from rrfrei.extrapolation import beyond, warn
 from rrfrei.io import ShearTest
 
 __all__ = ["Prediction", "predict", "asce_7_22_checks", "nrmse", "coverage"]
@@ -89,6 +90,9 @@ class Prediction:
     n_draws: int
     failed_draws: int = 0
     meta: dict = field(default_factory=dict)
+    extrapolation: tuple = ()
+    """Where ``test`` leaves the calibration test's displacement range
+    (:class:`rrfrei.extrapolation.Extrapolation` records; each also issued as a warning)."""
 
     def as_dict(self) -> dict:
         """Scalars for JSON: nrmse, nrmse_map, coverage, coverage_param, energy error of the MAP."""
@@ -98,6 +102,7 @@ class Prediction:
             "nrmse": self.nrmse, "nrmse_map": self.nrmse_map, "coverage": self.coverage,
             "coverage_param": self.coverage_param, "energy_test": e_t, "energy_map": e_m,
             "n_draws": self.n_draws, "failed_draws": self.failed_draws,
+            "extrapolation": [e.as_dict() for e in self.extrapolation],
         }
 
 
@@ -146,6 +151,9 @@ def predict(calibration, test: ShearTest, *, n: int = 200, seed: int = 0, level:
          asce_7_22_checks(_cycle_metrics(test.disp, fmap)).assign(source="MAP")],
         ignore_index=True,
     )
+    ext = tuple(beyond(test.name, "displacement", test.disp, (cal.test.disp.min(), cal.test.disp.max()),
+                       unit="m", what=f"the displacement range of the calibration test {cal.test.name!r}"))
+    warn(ext)
     return Prediction(
         law=cal.law, test=test, mean=mean, map=fmap, lower=lo, upper=hi, lower_param=lo_p,
         upper_param=hi_p, coverage=coverage(obs, lo, hi), coverage_param=coverage(obs, lo_p, hi_p),
@@ -154,6 +162,7 @@ def predict(calibration, test: ShearTest, *, n: int = 200, seed: int = 0, level:
         asce=asce, n_draws=int(ok.sum()), failed_draws=int((~ok).sum()),
         meta={"level": level, "calibrated_on": cal.test.name,
               "calibrated_disp_range_m": [float(cal.test.disp.min()), float(cal.test.disp.max())]},
+        extrapolation=ext,
     )
 
 
