@@ -144,7 +144,17 @@ def ensure_cache_dir() -> Path:
         path = cache_dir()
         if _STATE.get("ready") is not None:
             return path
-        _make_private(_STATE["root"])
+        root = _STATE["root"]
+        _make_private(root)
+        if "fallback" in _STATE:
+            import atexit
+            import warnings
+
+            atexit.register(shutil.rmtree, root, True)
+            warnings.warn(f"rrfrei: the per-user cache folder {private_root()} cannot be created; "
+                          f"compiled kernels are cached in {root} for this process only (set "
+                          "XDG_CACHE_HOME or NUMBA_CACHE_DIR to a writable folder)", RuntimeWarning,
+                          stacklevel=2)
         path.mkdir(parents=True, exist_ok=True)
         _prune(path.parent, path.name)
         _STATE["ready"] = path

@@ -236,3 +236,31 @@ def test_the_locator_claims_only_the_project_s_files():
     assert _jit_cache._is_ours(str(_jit_cache.cache_dir() / "generated" / "x_0123456789abcdef.py"))
     assert not _jit_cache._is_ours(str(ROOT / "tests" / "_toy_law.py"))
     assert not _jit_cache._is_ours(np.__file__)
+
+
+FALLBACK = r"""
+import json, warnings
+import rrfrei.laws as laws
+from rrfrei import _jit_cache
+from rrfrei.laws import specialise
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    drive = specialise.history(laws.get("linear"))
+print(json.dumps({"file": drive.py_func.__code__.co_filename, "cache": _jit_cache.CACHE_DIR,
+                  "warnings": [str(w.message) for w in caught]}))
+"""
+
+
+def test_without_a_usable_user_cache_the_kernels_are_cached_privately_for_the_process_only(tmp_path):
+    blocker = tmp_path / "not_a_folder"
+    blocker.write_text("")
+    env = _env(tmp_path, ROOT)
+    env["XDG_CACHE_HOME"] = str(blocker / "xdg")  # under a file: cannot be created
+    out = subprocess.run([sys.executable, "-c", FALLBACK], env=env, cwd=tmp_path, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert any("for this process only" in w for w in got["warnings"]), got["warnings"]
+    cache = Path(got["cache"])
+    assert Path(got["file"]).is_relative_to(cache)
+    assert not cache.is_relative_to(blocker) and not cache.exists(), "removed when the process ends"
