@@ -264,3 +264,18 @@ def test_without_a_usable_user_cache_the_kernels_are_cached_privately_for_the_pr
     cache = Path(got["cache"])
     assert Path(got["file"]).is_relative_to(cache)
     assert not cache.is_relative_to(blocker) and not cache.exists(), "removed when the process ends"
+
+
+@pytest.mark.parametrize("xdg", [None, "", "  ", "/some/where else"])
+def test_the_cache_folder_is_the_platform_s_per_user_cache_folder(monkeypatch, xdg):
+    import platformdirs
+    from numba.core import config
+
+    monkeypatch.setattr(config, "CACHE_DIR", "")
+    if xdg is None:
+        monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    else:
+        monkeypatch.setenv("XDG_CACHE_HOME", xdg)
+    assert _jit_cache.private_root() == Path(platformdirs.user_cache_dir("rrfrei", appauthor=False))
+    monkeypatch.setattr(config, "CACHE_DIR", "/numba/cache")
+    assert _jit_cache.private_root() == Path("/numba/cache/rrfrei")
