@@ -19,7 +19,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rrfrei.extrapolation import exceeds
 from structures import response_plots, summaries
 from structures.fragility import Fragility, fit_fragility
 
@@ -170,5 +169,5 @@ def chunk_table(out: dict, samples: np.ndarray, record: str, scale: float, d_max
     if d_max is None:
         cols["extrapolated"] = pd.array([pd.NA] * samples.size, dtype="boolean")
     else:
-        cols["extrapolated"] = pd.array(exceeds(umax / length_scale, d_max), dtype="boolean")
+        cols["extrapolated"] = pd.array(umax / length_scale > d_max * (1 + 1e-9), dtype="boolean")
     return pd.DataFrame(cols)

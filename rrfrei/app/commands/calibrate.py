@@ -259,8 +259,7 @@ def run(args: argparse.Namespace) -> int:
             loo = az.loo(cal.idata, var_name="force")
         hold = {}
         for path, h, hp in held:
-            hold[path] = {"nrmse": hp.nrmse, "coverage": hp.coverage,
-                          "extrapolation": [e.as_dict() for e in hp.extrapolation]}
+            hold[path] = {"nrmse": hp.nrmse, "coverage": hp.coverage}
             hp.cycles.assign(test=h.name).to_csv(out / f"holdout_{h.name}_cycles.csv", index=False)
     s = cal.summary
     result = {
