@@ -52,8 +52,10 @@ def _env(tmp: Path, tree: Path | None = None) -> dict:
 
 
 def _files(folder: Path) -> dict[str, tuple[int, int]]:
+    """Size and mtime of every file under ``folder`` except bytecode (which Python itself, and
+    another pytest worker, may write there)."""
     return {p.relative_to(folder).as_posix(): (p.stat().st_size, p.stat().st_mtime_ns)
-            for p in folder.rglob("*") if p.is_file()}
+            for p in folder.rglob("*") if p.is_file() and "__pycache__" not in p.parts}
 
 
 @pytest.fixture
