@@ -36,6 +36,13 @@ narrow by thousands of correlated samples.  The whitened (conditional) AR(1) lik
 chosen because it weights the residual's high-frequency differences and so fits the accelerations'
 noise rather than the isolation mode that a designer needs.
 
+sigma_c is a *relative* error: the residual RMS over the channel's RMS on the calibration runs.  In
+a prediction (band, held-out log-likelihood) a run's residual sd is sigma_c times the RMS of its
+own predicted channel, so the band of a run twice as strong as the calibration runs is twice as
+wide: the building's errors (a period or damping a few percent off) grow with the response, and a
+constant sd measured on the calibration runs would give held-out runs beyond the calibrated range
+a band too narrow for them.
+
 Search: least squares (``scipy.optimize.least_squares``, trust-region reflective, bounded, in
 coordinates scaled by each parameter's typical size) from several starts: the isolator loop fit
 (equation error, force given the measured displacement) with the identified superstructure, and
@@ -404,17 +411,32 @@ class BuildingFit(FitResult):
 
     def band(self, data: BuildingData, run: str, channel: str, *, level: float = LEVEL
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(median, lower, upper) [channel unit]: the predictive band, draws plus N(0, sigma_c^2)."""
+        """(median, lower, upper) [channel unit]: the predictive band, draws plus the residual model
+        N(0, (sigma_c RMS_run)^2), RMS_run the RMS of the run's predicted (median) channel."""
         D = self.channel_draws(data, run, channel)
-        scale = self.model.scales[channel]
-        sd = self.sigma_c.get(channel, self.model.extra_sigma(self, channel)) * scale
+        med = np.median(D, axis=0)
+        rel = self.sigma_c.get(channel, self.model.extra_sigma(self, channel))
+        sd = rel * float(np.sqrt(np.mean(med**2)))
         rng = np.random.default_rng([self.seed, 7, REPORT_CHANNELS.index(channel)])
         reps = -(-MIN_BAND_SAMPLES // D.shape[0])
         Y = np.repeat(D, reps, axis=0)
         Y = Y + rng.normal(size=Y.shape) * sd
         a = (1 - level) / 2
         lo, hi = np.quantile(Y, [a, 1 - a], axis=0)
-        return np.median(D, axis=0), lo, hi
+        return med, lo, hi
+
+    def residual_sd(self, data: BuildingData, mean: np.ndarray) -> np.ndarray:
+        """Residual sd of every sample of ``data``'s stacked channels (normalised units): sigma_c
+        times the RMS of the predicted ``mean`` over that run and channel (module docstring)."""
+        sig = np.empty(mean.size)
+        i0 = 0
+        for o in data.observed:
+            n = data.measured(o)["isolator_disp"].size
+            for c in FIT_CHANNELS:
+                seg = mean[i0:i0 + n]
+                sig[i0:i0 + n] = self.sigma_c[c] * max(float(np.sqrt(np.mean(seg**2))), 1e-12)
+                i0 += n
+        return sig
 
     def predict(self, data: BuildingData) -> Prediction:
         key = ("pred", id(data))
@@ -422,7 +444,7 @@ class BuildingFit(FitResult):
             return self._cache[key][1]
         _, outs = self.draws_on(data)
         F = np.vstack([self.model.stack(o, data) for o in outs])
-        sig = self.model.sigma_vector(self.sigma_c, data)
+        sig = self.residual_sd(data, F.mean(axis=0))
         rng = np.random.default_rng(self.seed + 1)
         reps = -(-MIN_BAND_SAMPLES // F.shape[0])
         Y = np.repeat(F, reps, axis=0)
@@ -435,11 +457,11 @@ class BuildingFit(FitResult):
         return pred
 
     def loglik(self, data: BuildingData) -> np.ndarray:
-        """Pointwise (S, n) Gaussian log-likelihood per channel (sd sigma_c), tempered by the
-        AR(1) factor (1 - rho_c) / (1 + rho_c) (module docstring)."""
+        """Pointwise (S, n) Gaussian log-likelihood per channel (sd :meth:`residual_sd`), tempered by
+        the AR(1) factor (1 - rho_c) / (1 + rho_c) (module docstring)."""
         pred = self.predict(data)
         y = self.model.observed(data)
-        sig = self.model.sigma_vector(self.sigma_c, data)
+        sig = self.residual_sd(data, pred.mean)
         temp = self.model.sigma_vector({c: _temper(self.rho_c[c]) for c in FIT_CHANNELS}, data)
         r = (y[None, :] - pred.draws) / sig[None, :]
         return temp[None, :] * (-0.5 * r**2 - np.log(sig)[None, :] - 0.5 * math.log(2 * math.pi))

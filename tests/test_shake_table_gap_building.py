@@ -185,3 +185,27 @@ def test_blocks_are_time_windows_holding_every_fitted_channel(truth):
     for j in range(1, len(FIT_CHANNELS)):
         np.testing.assert_array_equal(g[j * n:(j + 1) * n], first)
     assert set(np.unique(g[: n * len(FIT_CHANNELS)])).isdisjoint(np.unique(g[n * len(FIT_CHANNELS):]))
+
+
+def test_a_stronger_run_gets_a_proportionally_wider_band(truth):
+    """The residual model is relative: with no parameter uncertainty, the band's width on each run
+    is 2 x 1.96 sigma_c x the RMS of the run's predicted channel, so run 2 (1.8 x the input) gets a
+    band wider in proportion to its response, not the calibration run's width."""
+    from structures.building_model import BuildingFit
+
+    b, runs = truth
+    m = _model(runs, Superstructure.of(b), PL)
+    x = np.array([{**PL, "k_scale": 1.0, "zeta": ZETA}[n] for n in m.layout.names])
+    sig = {c: 0.1 for c in CHANNELS}
+    fit = BuildingFit(model=m, x_opt=x, X=np.repeat(x[None, :], 4, axis=0), sigma_c=sig,
+                      rho_c={c: 0.5 for c in FIT_CHANNELS}, ess=4.0)
+    widths = {}
+    for run in ("run1", "run2"):
+        d = BuildingData(tuple(runs), observed=(run,))
+        med, lo, hi = fit.band(d, run, "isolator_disp")
+        rms = np.sqrt(np.mean(med**2))
+        widths[run] = np.mean(hi - lo) / rms
+        assert widths[run] == pytest.approx(2 * 1.96 * 0.1, rel=0.1)
+    rms1 = np.sqrt(np.mean(runs[0].isolator_disp ** 2))
+    rms2 = np.sqrt(np.mean(runs[1].isolator_disp ** 2))
+    assert rms2 > 1.5 * rms1
