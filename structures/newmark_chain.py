@@ -29,7 +29,11 @@ phi = -K_ss^-1 K_s0 (phi_0 = 1) and d_0 = K_00 + K_0s phi (derivation in
   accelerations, and the history rows of an output step.
 
 All are pure functions of arrays and scalars (state in, state out through the arrays given);
-units kN, m, s, tonnes.  The rows of a kernel's work array are named here (:data:`N_WORK`).
+units kN, m, s, tonnes.  All but :func:`condense` (called once per step size) are inlined into
+the kernels (``inline="always"``, at Numba IR level): a call per step, with the views of the
+plan kernel's per-direction rows, would otherwise cost reference counting and calls that the
+written-out loops did not (measured: the plan kernel 1.7x slower).  The rows of a kernel's
+work array are named here (:data:`N_WORK`).
 """
 
 import math
@@ -56,7 +60,7 @@ NOT_CONVERGED = -4
 """Status of a step whose Newton iteration did not converge even after subdivision."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def work_rows(work):
     """Views of the rows of a work array (N_WORK, [directions,] ndof) used by the step:
     (u, v, a, r, lower, ratio, inv_pivot, shape)."""
@@ -64,7 +68,7 @@ def work_rows(work):
             work[SHAPE])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def save_state(work, saved, scalars):
     """Save the committed state before a subdivided step: u, v, a into their saved rows, the
     law's committed state into ``saved[1]`` and the committed scalars (first half of the rows of
@@ -75,7 +79,7 @@ def save_state(work, saved, scalars):
     scalars[half:] = scalars[:half]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def restore_state(work, saved, scalars):
     """Undo a failed try of a subdivided step: the inverse of :func:`save_state`."""
     work[U:A + 1] = work[U_SAVED:A_SAVED + 1]
@@ -84,7 +88,7 @@ def restore_state(work, saved, scalars):
     scalars[:half] = scalars[half:]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def start_try(level, work, law, scalars, trial):
     """Before try ``level`` of a step (0: one step; l: 2^l substeps): at level 1 save the
     committed state of step k-1 (the failed first try committed nothing), at higher levels
@@ -98,7 +102,7 @@ def start_try(level, work, law, scalars, trial):
         copy(law[0], trial)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def newton_verdict(status, finite, it, norm2, tol):
     """(status, stop) after the isolator call of Newton iteration ``it`` (0: at the predictor):
     stop on a law status != 0, on a non-finite force, tangent or correction (``finite`` False:
@@ -114,14 +118,14 @@ def newton_verdict(status, finite, it, norm2, tol):
     return NOT_CONVERGED, False
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def copy(src, dst):
     """dst[:] = src for short 1-D arrays (a law's state), as a loop."""
     for q in range(src.shape[0]):
         dst[q] = src[q]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def coefficients(solver, h):
     """Newmark's coefficients for the step ``h`` [s]: (c1, c2) = (dv/du, da/du) of a
     correction, g/(b h) and 1/(b h^2), and the predictor's v = cv v_n + cva a_n,
@@ -132,14 +136,14 @@ def coefficients(solver, h):
             h * (1.0 - gamma / (2.0 * beta)), 1.0 - 1.0 / (2.0 * beta), -1.0 / (beta * h))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def layer_scales(layer):
     """(1 / s, count s^2, count s) of an isolator layer: the law sees u / s and v / s and its
     force and tangent scale to the layer's by the other two (similitude, equal stress)."""
     return 1.0 / layer.scale, layer.count * layer.scale * layer.scale, layer.count * layer.scale
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def block(runs, n_blocks, b):
     """The runs [lo, hi) of block ``b`` of ``n_blocks`` contiguous blocks of a batch."""
     return (runs * b) // n_blocks, (runs * (b + 1)) // n_blocks
@@ -203,7 +207,7 @@ def condense(chain, c1, c2, lower, ratio, inv_pivot, shape, flex):
     return d0, norm2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def linear_residual(m, ks, cs, cg, u, v, a, ag, cv, cva, ca, cav, shape, r):
     """The residual of the linear part at the predictor, written to ``r`` [kN], and its
     condensation on the base r_0 = R_0 + phi . R_s [kN] (returned).
@@ -228,7 +232,7 @@ def linear_residual(m, ks, cs, cg, u, v, a, ag, cv, cva, ca, cav, shape, r):
     return r0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def add_superstructure_norm(norm2, shape, flex, r, du0):
     """``norm2`` [m^2] plus the squared corrections of the superstructure's DOFs,
     du_s = K_ss^-1 R_s + phi_s du_0, for the base correction ``du0`` [m] of the first iteration."""
@@ -241,7 +245,7 @@ def add_superstructure_norm(norm2, shape, flex, r, du0):
     return norm2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def commit(m, cs, cg, u, v, a, ub, vb, ab, moved, shape, flex, r, agm, c1, c2, cv, cva, ca, cav):
     """Commit the (sub)step: the base to its converged trial state (``ub, vb, ab``), every
     floor by its predictor plus K_ss^-1 R_s + phi ``moved`` (the sum of the base corrections
@@ -279,7 +283,7 @@ def commit(m, cs, cg, u, v, a, ub, vb, ab, moved, shape, flex, r, agm, c1, c2, c
     return de_input, de_viscous
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def output_step(m, ks, cs, u, v, a, ag, inv_height, drift_max, accel_max, k, disp_h, accel_h, drift_h,
                 drift_ratio_h):
     """Output step ``k``: peak |drift| [m] and |absolute floor acceleration| [m/s^2] updated in
@@ -313,7 +317,7 @@ def output_step(m, ks, cs, u, v, a, ag, inv_height, drift_max, accel_max, k, dis
     return e_kinetic, e_strain, shear
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def clear_first_step(disp_h, accel_h, drift_h, drift_ratio_h, force_h, shear_h, energy_h):
     """Zero the histories' first output step (at rest; no-op for histories without rows)."""
     if disp_h.shape[0] == 0:
