@@ -19,7 +19,7 @@ import numpy as np
 
 from structures.history import time_history_batch
 
-__all__ = ["as_completed", "is_dask", "run_chunk", "submit", "workers"]
+__all__ = ["as_completed", "is_dask", "run_chunk", "set_threads", "submit", "workers"]
 
 
 def run_chunk(building, record, scale: float, params: np.ndarray, threads: int | None = None) -> dict:
@@ -28,11 +28,17 @@ def run_chunk(building, record, scale: float, params: np.ndarray, threads: int |
     ``threads`` sets this thread's Numba thread count (executors pass ``cores // workers``);
     None keeps the default (all cores).
     """
-    if threads is not None:
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    set_threads(threads)
     rec = record if scale == 1.0 else record.scaled(scale)
     out = time_history_batch(building, rec, np.ascontiguousarray(params, dtype=float))
     return {k: np.asarray(v) for k, v in out.items()}
+
+
+def set_threads(threads: int | None) -> None:
+    """Set this thread's Numba thread count to ``threads`` (clipped to [1, the Numba maximum]);
+    None keeps it."""
+    if threads is not None:
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
 
 
 # ---------------------------------------------------------------------------------------------

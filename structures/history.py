@@ -125,27 +125,45 @@ def _ground(record, dt) -> tuple[str, np.ndarray, float]:
         raise ValueError(
             f"record must be a ground_motions.Record (dt [s], accel [m/s^2]), got {type(record).__name__}"
         ) from None
-    if not (np.isfinite(rdt) and rdt > 0.0):
-        raise ValueError(f"record {name!r}: dt = {rdt!r} is invalid: expected a finite number > 0 s")
     if acc.ndim != 1 or acc.size < 2:
         raise ValueError(
             f"record {name!r}: accel must be a 1-D array of at least 2 values, got shape {acc.shape}"
         )
-    bad = np.flatnonzero(~np.isfinite(acc))
+    return on_step("record", name, acc, rdt, dt)
+
+
+def on_step(what: str, name: str, acc: np.ndarray, rdt: float, dt) -> tuple[str, np.ndarray, float]:
+    """(name, ground acceleration ``acc`` (n,) or (n, 2) (x, y) [m/s^2] sampled every ``rdt``
+    [s] on the analysis step ``dt`` [s] (None: ``rdt``; a smaller one interpolates linearly), the
+    step).  ValueError naming the ``what`` (record, ground), ``name``, and the sample (and
+    component) for a bad step or a non-finite value."""
+    if not (np.isfinite(rdt) and rdt > 0.0):
+        raise ValueError(f"{what} {name!r}: dt = {rdt!r} is invalid: expected a finite number > 0 s")
+    bad = np.argwhere(~np.isfinite(acc))
     if bad.size:
-        i = int(bad[0])
-        raise ValueError(f"record {name!r}: accel[{i}] = {float(acc[i])!r} (t = {i * rdt:g} s) is not finite")
-    if dt is None or float(dt) == rdt:
+        i = int(bad[0, 0])
+        at = f"accel[{i}]" if acc.ndim == 1 else f"accel[{i}, {int(bad[0, 1])}]"
+        comp = "" if acc.ndim == 1 else f"component {'xy'[int(bad[0, 1])]}, "
+        raise ValueError(f"{what} {name!r}: {at} = {float(acc[tuple(bad[0])])!r} ({comp}t = {i * rdt:g} s) "
+                         "is not finite")
+    try:
+        h = rdt if dt is None else float(dt)
+    except (TypeError, ValueError):
+        h = float("nan")
+    if h == rdt:
         return name, np.ascontiguousarray(acc), rdt
-    h = float(dt)
     if not (np.isfinite(h) and 0.0 < h <= rdt):
         raise ValueError(
-            f"dt = {dt!r} is invalid for record {name!r}: expected 0 < dt <= the record step {rdt:g} s "
+            f"dt = {dt!r} is invalid for {what} {name!r}: expected 0 < dt <= the record step {rdt:g} s "
             "(the record is interpolated linearly onto the finer step)"
         )
-    duration = (acc.size - 1) * rdt
+    duration = (acc.shape[0] - 1) * rdt
     n = int(np.floor(duration / h * (1.0 + 1e-12))) + 1
-    return name, np.interp(np.arange(n) * h, np.arange(acc.size) * rdt, acc), h
+    t = np.arange(n) * h
+    tr = np.arange(acc.shape[0]) * rdt
+    if acc.ndim == 1:
+        return name, np.interp(t, tr, acc), h
+    return name, np.ascontiguousarray(np.column_stack([np.interp(t, tr, c) for c in acc.T])), h
 
 
 def _model(building) -> tuple[LawSpec, Chain]:
@@ -172,6 +190,63 @@ def _layer(building, params: np.ndarray) -> Layer:
 def kernel(spec: LawSpec) -> ModuleType:
     """The Newmark kernel (:mod:`structures.newmark`) instantiated for the law ``spec``."""
     return specialise.instantiate(TEMPLATE, specialise.bindings(spec), spec.name)
+
+
+def failure(what: str, name: str, k: int, h: float, solver: Solver, status: int) -> str:
+    """The head of a :class:`ConvergenceError` message: which step of which ground motion failed
+    and why (followed by the state at the step before, which the caller words)."""
+    return (f"{what} {name!r}: the step to t = {k * h:.6g} s (step {k}) failed even in "
+            f"{2 ** solver.max_levels} substeps: "
+            f"{STATUS_MESSAGES.get(int(status), f'status {status}')}; state at t = {(k - 1) * h:.6g} s: ")
+
+
+def response(name: str, time: np.ndarray, hist: Histories, energy: dict, energy_error: float,
+             robust_steps: np.ndarray | None = None) -> Response:
+    """The :class:`Response` of unidirectional histories (a plan direction's: ``hist.direction(d)``)."""
+    extra = {} if robust_steps is None else {"robust_steps": robust_steps}
+    return Response(
+        record=name,
+        time=time,
+        isolator_disp=hist.disp[:, 0],
+        isolator_force=hist.isolator_force,
+        floor_disp=hist.disp[:, 1:],
+        drift=hist.drift,
+        drift_ratio=hist.drift_ratio,
+        floor_accel_abs=hist.accel[:, 1:],
+        base_accel_abs=hist.accel[:, 0],
+        base_shear=hist.base_shear,
+        energy=energy,
+        energy_error=float(energy_error),
+        newton_iterations=hist.iterations,
+        subdivided_steps=np.flatnonzero(hist.levels > 0),
+        **extra,
+    )
+
+
+def run_batch(batch, args: tuple, res, runs: int, n_blocks: int | None):
+    """Run the kernel ``batch(*args, blocks, res)`` over ``runs`` parameter rows in ``n_blocks``
+    parallel blocks (default: 4 per Numba thread, at most ``runs``); return ``res``."""
+    if n_blocks is None:
+        n_blocks = 4 * numba.get_num_threads()
+    if runs:
+        batch(*args, max(1, min(int(n_blocks), runs)), res)
+    return res
+
+
+def batch_demands(res, demands: dict[str, str], peak: tuple[str, str], counts: tuple[str, ...]) -> dict:
+    """The per-run arrays of a batch's results ``res``: ``demands`` (key -> field) hold NaN for
+    the runs that failed; ``peak`` (key, field) keeps every run's value (for a failed run the
+    largest reached before it failed); then the ``counts``, ``status`` and ``converged``."""
+    ok = res.status == 0
+    out = {key: getattr(res, f).copy() for key, f in demands.items()}
+    for arr in out.values():
+        arr[~ok] = np.nan
+    out[peak[0]] = getattr(res, peak[1])
+    for c in counts:
+        out[c] = getattr(res, c)
+    out["status"] = res.status
+    out["converged"] = ok
+    return out
 
 
 def time_history(
@@ -227,10 +302,8 @@ def time_history(
     if run.status != 0:
         k = run.failed_step
         raise ConvergenceError(
-            f"record {name!r}: the step to t = {k * h:.6g} s (step {k}) failed even in "
-            f"{2 ** solver.max_levels} substeps: "
-            f"{STATUS_MESSAGES.get(int(run.status), f'status {run.status}')}; state at "
-            f"t = {(k - 1) * h:.6g} s: isolator displacement {hist.disp[k - 1, 0]:.6g} m, force "
+            failure("record", name, k, h, solver, run.status)
+            + f"isolator displacement {hist.disp[k - 1, 0]:.6g} m, force "
             f"{hist.isolator_force[k - 1]:.6g} kN, base shear {hist.base_shear[k - 1]:.6g} kN; law "
             f"{spec.name!r} with parameters {spec.as_dict(p)}, {iso.count} bearings, length_scale "
             f"{iso.length_scale:g}" + robust_hint(spec, run.status, solver.robust)
@@ -238,23 +311,8 @@ def time_history(
     robust_steps = np.flatnonzero(hist.robust)
     if robust_steps.size:
         warnings.warn(deviation_warning(spec.name, robust_steps, "time step"), stacklevel=2)
-    return Response(
-        record=name,
-        time=np.arange(n) * h,
-        isolator_disp=hist.disp[:, 0],
-        isolator_force=hist.isolator_force,
-        floor_disp=hist.disp[:, 1:],
-        drift=hist.drift,
-        drift_ratio=hist.drift_ratio,
-        floor_accel_abs=hist.accel[:, 1:],
-        base_accel_abs=hist.accel[:, 0],
-        base_shear=hist.base_shear,
-        energy=_energy.as_dict(hist.energy),
-        energy_error=float(run.energy_error),
-        newton_iterations=hist.iterations,
-        subdivided_steps=np.flatnonzero(hist.levels > 0),
-        robust_steps=robust_steps,
-    )
+    return response(name, np.arange(n) * h, hist, _energy.as_dict(hist.energy), run.energy_error,
+                    robust_steps)
 
 
 def time_history_batch(
@@ -298,31 +356,19 @@ def time_history_batch(
     solver = _solver(gamma, beta, tol, max_iter, max_subdivisions, robust_local_solve(spec, local_solver))
     name, ag, h = _ground(record, dt)
     P = param_rows(spec, params)
-    runs = P.shape[0]
-    if n_blocks is None:
-        n_blocks = 4 * numba.get_num_threads()
-    res = Batch.allocate(runs, chain.mass.size - 1)
-    if runs:
-        blocks = max(1, min(int(n_blocks), runs))
-        kernel(spec).batch(chain, _layer(building, P[0]), P, ag, h, solver, blocks, res)
-    ok = res.status == 0
-    out = {
-        "iso_disp_peak": res.iso_disp_peak.copy(),
-        "iso_disp_residual": res.iso_disp_residual,
-        "drift_peak": res.drift_peak,
-        "floor_acc_peak": res.accel_peak,
-        "base_shear_peak": res.base_shear_peak,
-        "iso_energy": res.iso_work,
-        "energy_error": res.energy_error,
-    }
-    for arr in out.values():
-        arr[~ok] = np.nan
-    out["iso_disp_max_abs"] = res.iso_disp_peak  # failed runs: the largest before failing
-    out["subdivided_steps"] = res.subdivided_steps
-    out["robust_steps"] = res.robust_steps
-    out["status"] = res.status
-    out["converged"] = ok
-    return out
+    res = run_batch(kernel(spec).batch, (chain, _layer(building, first_row(P)), P, ag, h, solver),
+                    Batch.allocate(P.shape[0], chain.mass.size - 1), P.shape[0], n_blocks)
+    return batch_demands(res, {"iso_disp_peak": "iso_disp_peak", "iso_disp_residual": "iso_disp_residual",
+                               "drift_peak": "drift_peak", "floor_acc_peak": "accel_peak",
+                               "base_shear_peak": "base_shear_peak", "iso_energy": "iso_work",
+                               "energy_error": "energy_error"},
+                         ("iso_disp_max_abs", "iso_disp_peak"), ("subdivided_steps", "robust_steps"))
+
+
+def first_row(P: np.ndarray) -> np.ndarray:
+    """The first parameter row of ``P`` (zeros when it has none): a batch's layer, whose
+    parameters the batch kernel replaces by each row."""
+    return P[0] if P.shape[0] else np.zeros(P.shape[1])
 
 
 def param_rows(spec: LawSpec, params) -> np.ndarray:

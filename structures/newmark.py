@@ -48,6 +48,13 @@ Newton tolerance): input E_I = -sum (1/2)(a_g,n + a_g,n+1) 1^T M du, viscous E_D
 (1/2)(C v_n + C v_n+1)^T du, isolator work E_H = sum (1/2)(F_n + F_n+1) du_0; the kinetic and
 recoverable strain energies are evaluated from the state.
 
+Shared core
+-----------
+The chain's part of the step (condensation, predictor residual, commit with energy, output step,
+convergence rule) is :mod:`structures.newmark_chain`, which the plan kernel
+(:mod:`structures.plan_newmark`) calls per direction; this module holds what is its own: the
+scalar Newton iteration on the base DOF and the calls of the law.
+
 Template
 --------
 The isolator law is called through the slots ``law_step`` and ``law_step_robust`` (contract of
@@ -66,82 +73,20 @@ import numpy as np
 from numba import njit, prange
 
 from rrfrei.laws.specialise import unbound
+from structures import newmark_chain as core
 from structures.newmark_records import N_ENERGY, Histories, Layer, Summary
 
 SLOTS = ("law_step", "law_step_robust")
 law_step = unbound("law_step")
 law_step_robust = unbound("law_step_robust")
 
-# rows of the per-analysis work array (each of length ndof)
-N_WORK = 11
-(U, V, A,  # committed displacement, velocity, acceleration
- U_SAVED, V_SAVED, A_SAVED,  # the committed state before a subdivided step
- R,  # residual of the linear part at the predictor
- LOWER, RATIO, INV_PIVOT,  # scratch of the elimination in _condense
- SHAPE) = range(N_WORK)  # phi, the superstructure's correction per unit base correction
-
-
-@njit(cache=True)
-def _condense(chain, c1, c2, lower, ratio, inv_pivot, shape, flex):
-    """Condense K_L = K_s + c1 C + c2 M onto the base DOF.
-
-    Eliminates K_L from the roof down (scratch: for DOF j >= 1 the coupling ``lower[j]`` of DOFs
-    j-1 and j, the factors ``ratio[j] = lower[j] / d'_j`` and ``inv_pivot[j] = 1 / d'_j``), and
-    writes ``shape`` = phi, the superstructure's correction per unit base correction (phi_0 = 1,
-    phi_j = -ratio[j] phi_{j-1}, i.e. -K_ss^-1 K_s0), and ``flex`` = K_ss^-1, the flexibility of
-    the superstructure with the base held still (row and column 0 zero).  The condensed base
-    residual of a residual R is then R_0 + phi . R_s and the superstructure's correction for a
-    base correction du_0 is K_ss^-1 R_s + phi du_0.
-
-    Returns
-    -------
-    (d_0, phi^T phi) : the condensed base pivot [kN/m] (without the isolator tangent) and the
-    squared norm of phi.
-    """
-    m = chain.mass
-    ks = chain.story_stiffness
-    cs = chain.story_damping
-    cg = chain.ground_damping
-    n = m.shape[0]
-    d0 = 0.0
-    for j in range(n - 1, -1, -1):
-        dj = c2 * m[j] + c1 * cg[j]
-        if j < n - 1:
-            dj += ks[j] + c1 * cs[j]  # story j+1 above DOF j
-        if j > 0:
-            lj = -(ks[j - 1] + c1 * cs[j - 1])  # story j below DOF j
-            dj -= lj
-            lower[j] = lj
-        if j < n - 1:
-            dj -= lower[j + 1] * ratio[j + 1]
-        if j > 0:
-            inv_pivot[j] = 1.0 / dj
-            ratio[j] = lower[j] / dj
-        else:
-            d0 = dj
-    shape[0] = 1.0
-    norm2 = 1.0
-    for j in range(1, n):
-        shape[j] = -ratio[j] * shape[j - 1]
-        norm2 += shape[j] * shape[j]
-    for k in range(n):  # column k of K_ss^-1: eliminate e_k from the roof down, back-substitute
-        flex[0, k] = 0.0
-        flex[k, 0] = 0.0
-    for k in range(1, n):
-        below = 0.0
-        for j in range(n - 1, 0, -1):
-            below = (1.0 if j == k else 0.0) - (ratio[j + 1] * below if j < n - 1 else 0.0)
-            flex[j, k] = below  # r'_j
-        x = 0.0
-        for j in range(1, n):
-            x = (flex[j, k] - lower[j] * x) * inv_pivot[j]
-            flex[j, k] = x
-    return d0, norm2
-
 
 @njit(cache=True)
 def integrate(chain, layer, ag, dt, solver, hist):
     """One analysis from rest under the ground acceleration ``ag`` [m/s^2] every ``dt`` [s].
+
+    The chain moves by the shared core :mod:`structures.newmark_chain`; the Newton iteration on
+    the base DOF, where the isolator law is called, is written out here.
 
     Parameters
     ----------
@@ -164,13 +109,7 @@ def integrate(chain, layer, ag, dt, solver, hist):
     cs = chain.story_damping
     cg = chain.ground_damping
     params = layer.params
-    inv_scale = 1.0 / layer.scale  # the law sees u / s, v / s and gives count s^2 F, count s k
-    force_scale = layer.count * layer.scale * layer.scale
-    tangent_scale = layer.count * layer.scale
-    gamma = solver.gamma
-    beta = solver.beta
-    max_iter = solver.max_iter
-    max_levels = solver.max_levels
+    inv_scale, force_scale, tangent_scale = core.layer_scales(layer)
     tol = solver.tol
     disp_h, accel_h, drift_h, drift_ratio_h = hist.disp, hist.accel, hist.drift, hist.drift_ratio
     force_h, shear_h, energy_h = hist.isolator_force, hist.base_shear, hist.energy
@@ -178,44 +117,27 @@ def integrate(chain, layer, ag, dt, solver, hist):
     n = m.shape[0]
     nt = ag.shape[0]
     store = disp_h.shape[0] > 0
-    work = np.zeros((N_WORK, n))
-    u, v, a = work[U], work[V], work[A]
-    u_saved, v_saved, a_saved = work[U_SAVED], work[V_SAVED], work[A_SAVED]
-    r = work[R]
-    lower, ratio, inv_pivot, shape = work[LOWER], work[RATIO], work[INV_PIVOT], work[SHAPE]
-    flex = np.zeros((n, n))  # K_ss^-1 [m/kN] (see _condense)
-    nstate = layer.state0.shape[0]
-    sc = layer.state0.copy()  # the law's committed state
+    work = np.zeros((core.N_WORK, n))
+    u, v, a, r, lower, ratio, inv_pivot, shape = core.work_rows(work)
+    flex = np.zeros((n, n))  # K_ss^-1 [m/kN] (see newmark_chain.condense)
+    law = np.empty((2, layer.state0.shape[0]))  # the law's committed state, and before a subdivided step
+    law[0] = layer.state0
+    sc = law[0]
     st = layer.state0.copy()  # its trial state
-    sc_saved = layer.state0.copy()  # its committed state before a subdivided step
     inv_height = 1.0 / chain.story_height  # [1/m]
     drift_max = np.zeros(n - 1)  # peak |story drift| [m]
     accel_max = np.zeros(n - 1)  # peak |absolute floor acceleration| [m/s^2]
     # ---- at rest, initial acceleration solved exactly: a_0 = -a_g(0) 1 (no force at rest)
     for j in range(n):
         a[j] = -ag[0]
+    core.clear_first_step(disp_h, accel_h, drift_h, drift_ratio_h, force_h, shear_h, energy_h)
     if store:
-        for j in range(n):
-            disp_h[0, j] = 0.0
-            accel_h[0, j] = 0.0
-        for j in range(n - 1):
-            drift_h[0, j] = 0.0
-            drift_ratio_h[0, j] = 0.0
-        force_h[0] = 0.0
-        shear_h[0] = 0.0
-        for q in range(energy_h.shape[0]):
-            energy_h[q, 0] = 0.0
         iterations_h[0] = 0
         levels_h[0] = 0
         robust_h[0] = False
-    # committed scalars: isolator force [kN], energies [kN m], ground acceleration [m/s^2]
-    f_c = 0.0
-    e_input = 0.0
-    e_viscous = 0.0
-    e_isolator = 0.0
-    ag_c = ag[0]
-    f_c_saved, ag_c_saved = f_c, ag_c
-    e_input_saved, e_viscous_saved, e_isolator_saved = e_input, e_viscous, e_isolator
+    # committed scalars (and their saved copy), see newmark_chain.N_SCALARS
+    scal = np.zeros(2 * core.N_SCALARS)
+    scal[core.AG_C] = ag[0]
     u0_peak = 0.0
     shear_peak = 0.0
     imbalance_max = 0.0
@@ -232,58 +154,19 @@ def integrate(chain, layer, ag, dt, solver, hist):
         status = 0
         level = 0
         deviated = False
-        for level in range(max_levels + 1):
-            if level == 1:  # the failed first try committed nothing: save the state at step k-1
-                for j in range(n):
-                    u_saved[j] = u[j]
-                    v_saved[j] = v[j]
-                    a_saved[j] = a[j]
-                for q in range(nstate):
-                    sc_saved[q] = sc[q]
-                f_c_saved, ag_c_saved = f_c, ag_c
-                e_input_saved, e_viscous_saved, e_isolator_saved = e_input, e_viscous, e_isolator
-            elif level > 1:  # restore it
-                for j in range(n):
-                    u[j] = u_saved[j]
-                    v[j] = v_saved[j]
-                    a[j] = a_saved[j]
-                for q in range(nstate):
-                    sc[q] = sc_saved[q]
-                f_c, ag_c = f_c_saved, ag_c_saved
-                e_input, e_viscous, e_isolator = e_input_saved, e_viscous_saved, e_isolator_saved
-            if level > 0:
-                for q in range(nstate):
-                    st[q] = sc[q]
-            robust = solver.robust and level == max_levels
+        for level in range(solver.max_levels + 1):
+            core.start_try(level, work, law, scal, st)
+            robust = solver.robust and level == solver.max_levels
             nsub = 1 << level
             h = dt / nsub
-            c1 = gamma / (beta * h)  # dv/du of a correction
-            c2 = 1.0 / (beta * h * h)  # da/du of a correction
-            cv = 1.0 - gamma / beta  # predictor: v = cv v_n + cva a_n, a = ca a_n + cav v_n
-            cva = h * (1.0 - gamma / (2.0 * beta))
-            ca = 1.0 - 1.0 / (2.0 * beta)
-            cav = -1.0 / (beta * h)
+            c1, c2, cv, cva, ca, cav = core.coefficients(solver, h)
             if h != h_condensed:
-                d0, phi2 = _condense(chain, c1, c2, lower, ratio, inv_pivot, shape, flex)
+                d0, phi2 = core.condense(chain, c1, c2, lower, ratio, inv_pivot, shape, flex)
                 h_condensed = h
             status = 0
             for sub in range(nsub):
                 agk = ag1 if sub == nsub - 1 else ag0 + (ag1 - ag0) * (sub + 1) / nsub
-                # -- predictor, the residual of the linear part at it (R_0 without the isolator
-                # force), and its condensation on the base r0 = R_0 + phi . R_s.  Predicted
-                # superstructure values are recomputed from (u, v, a) at the commit.
-                v_below = cv * v[0] + cva * a[0]
-                r_below = -m[0] * (agk + ca * a[0] + cav * v[0]) - cg[0] * v_below
-                r0 = 0.0
-                for j in range(1, n):  # story j joins DOF j-1 and DOF j
-                    vj = cv * v[j] + cva * a[j]
-                    fs = ks[j - 1] * (u[j] - u[j - 1]) + cs[j - 1] * (vj - v_below)
-                    r[j - 1] = r_below + fs
-                    r0 += shape[j - 1] * r[j - 1]
-                    r_below = -m[j] * (agk + ca * a[j] + cav * v[j]) - cg[j] * vj - fs
-                    v_below = vj
-                r[n - 1] = r_below
-                r0 += shape[n - 1] * r_below
+                r0 = core.linear_residual(m, ks, cs, cg, u, v, a, agk, cv, cva, ca, cav, shape, r)
                 # -- Newton on the base: trial state of DOF 0
                 u0 = u[0]
                 v0 = cv * v[0] + cva * a[0]
@@ -293,18 +176,13 @@ def integrate(chain, layer, ag, dt, solver, hist):
                 du0 = 0.0  # base correction of the last iteration [m]
                 moved = 0.0  # sum of the base corrections [m]
                 norm2 = 0.0  # squared 2-norm of the last correction [m^2]
-                converged = False
-                for it in range(max_iter + 1):
+                for it in range(solver.max_iter + 1):
                     if it > 0:
                         if it == 1:  # the condensed residual of the predictor, r0 - F
                             du0 = (r0 - f) / (d0 + kt)
                             norm2 = du0 * du0
                             if norm2 < tol * tol:  # else not converged whatever the superstructure
-                                for j in range(1, n):  # its correction K_ss^-1 R_s + phi du_0
-                                    d = shape[j] * du0
-                                    for i in range(1, n):
-                                        d += flex[j, i] * r[i]
-                                    norm2 += d * d
+                                norm2 = core.add_superstructure_norm(norm2, shape, flex, r, du0)
                         else:  # the residual is on the base alone: r_0 = k_t du_0 - (F - F_prev)
                             du0 = (kt_prev * du0 - (f - f_prev)) / (d0 + kt)
                             norm2 = du0 * du0 * phi2
@@ -326,53 +204,21 @@ def integrate(chain, layer, ag, dt, solver, hist):
                     f = force_scale * fl
                     kt = tangent_scale * kl
                     n_it += 1 if it > 0 else 0
-                    if status != 0:
+                    finite = math.isfinite(f) and math.isfinite(kt) and math.isfinite(norm2)
+                    status, stop = core.newton_verdict(status, finite, it, norm2, tol)
+                    if stop:
                         break
-                    if not (math.isfinite(f) and math.isfinite(kt) and math.isfinite(norm2)):
-                        status = -3
-                        break
-                    if it > 0 and math.sqrt(norm2) < tol:
-                        converged = True
-                        break
-                if status == 0 and not converged:
-                    status = -4
                 if status != 0:
                     break
-                # -- commit, with the energy increments (trapezoidal): the superstructure moves
-                # by its predictor plus K_ss^-1 R_s + phi (sum of the base corrections)
-                agm = 0.5 * (ag_c + agk)
-                du_j = u0 - u[0]
-                de_input = -m[0] * agm * du_j
-                de_viscous = 0.5 * cg[0] * (v[0] + v0) * du_j
-                e_isolator += 0.5 * (f_c + f) * du_j
-                u_below, v_below = u[0], v[0]  # DOF j-1 before the step
-                u_below_t, v_below_t = u0, v0  # and after
-                u[0] = u0
-                v[0] = v0
-                a[0] = a0
-                for j in range(1, n):
-                    d = shape[j] * moved
-                    for i in range(1, n):
-                        d += flex[j, i] * r[i]
-                    uj = u[j] + d
-                    vj = cv * v[j] + cva * a[j] + c1 * d
-                    aj = ca * a[j] + cav * v[j] + c2 * d
-                    du_j = uj - u[j]
-                    de_input -= m[j] * agm * du_j
-                    de_viscous += 0.5 * cg[j] * (v[j] + vj) * du_j
-                    dd = (uj - u_below_t) - (u[j] - u_below)
-                    de_viscous += 0.5 * cs[j - 1] * ((v[j] - v_below) + (vj - v_below_t)) * dd
-                    u_below, v_below = u[j], v[j]
-                    u_below_t, v_below_t = uj, vj
-                    u[j] = uj
-                    v[j] = vj
-                    a[j] = aj
-                e_input += de_input
-                e_viscous += de_viscous
-                f_c = f
-                ag_c = agk
-                for q in range(nstate):
-                    sc[q] = st[q]
+                # -- commit, with the energy increments (trapezoidal)
+                scal[core.E_ISOLATOR] += 0.5 * (scal[core.F_C] + f) * (u0 - u[0])
+                de_input, de_viscous = core.commit(m, cs, cg, u, v, a, u0, v0, a0, moved, shape, flex, r,
+                                                   0.5 * (scal[core.AG_C] + agk), c1, c2, cv, cva, ca, cav)
+                scal[core.E_INPUT] += de_input
+                scal[core.E_VISCOUS] += de_viscous
+                scal[core.F_C] = f
+                scal[core.AG_C] = agk
+                core.copy(st, sc)
             if status == 0:
                 break
         if store:
@@ -381,8 +227,7 @@ def integrate(chain, layer, ag, dt, solver, hist):
             robust_h[k] = deviated
         if status != 0:
             if store:
-                for j in range(n):
-                    disp_h[k, j] = u[j]
+                disp_h[k, :] = u
             return Summary(status, k, u0_peak, 0.0, 0.0, 0.0, 0.0, n_subdivided, n_robust,
                            drift_max * inv_height, accel_max)
         if level > 0:
@@ -390,45 +235,28 @@ def integrate(chain, layer, ag, dt, solver, hist):
         if deviated:
             n_robust += 1
         # -- output step k: stored energies, peaks, histories
-        e_kinetic = 0.5 * m[0] * v[0] * v[0]
-        e_strain = 0.0
-        if store:
-            disp_h[k, 0] = u[0]
-            accel_h[k, 0] = a[0] + ag1
-        for j in range(1, n):
-            e_kinetic += 0.5 * m[j] * v[j] * v[j]
-            d = u[j] - u[j - 1]
-            e_strain += 0.5 * ks[j - 1] * d * d
-            if abs(d) > drift_max[j - 1]:
-                drift_max[j - 1] = abs(d)
-            aa = abs(a[j] + ag1)
-            if aa > accel_max[j - 1]:
-                accel_max[j - 1] = aa
-            if store:
-                disp_h[k, j] = u[j]
-                accel_h[k, j] = a[j] + ag1
-                drift_h[k, j - 1] = d
-                drift_ratio_h[k, j - 1] = d * inv_height[j - 1]
+        e_kinetic, e_strain, shear = core.output_step(m, ks, cs, u, v, a, ag1, inv_height, drift_max,
+                                                      accel_max, k, disp_h, accel_h, drift_h, drift_ratio_h)
+        e_input = scal[core.E_INPUT]
         if abs(u[0]) > u0_peak:
             u0_peak = abs(u[0])
-        shear = ks[0] * (u[1] - u[0]) + cs[0] * (v[1] - v[0])
         if abs(shear) > shear_peak:
             shear_peak = abs(shear)
-        imbalance = abs(e_input - e_kinetic - e_viscous - e_isolator - e_strain)
+        imbalance = abs(e_input - e_kinetic - scal[core.E_VISCOUS] - scal[core.E_ISOLATOR] - e_strain)
         if imbalance > imbalance_max:
             imbalance_max = imbalance
         if abs(e_input) > input_max:
             input_max = abs(e_input)
         if store:
-            force_h[k] = f_c
+            force_h[k] = scal[core.F_C]
             shear_h[k] = shear
             energy_h[0, k] = e_input
             energy_h[1, k] = e_kinetic
-            energy_h[2, k] = e_viscous
-            energy_h[3, k] = e_isolator
+            energy_h[2, k] = scal[core.E_VISCOUS]
+            energy_h[3, k] = scal[core.E_ISOLATOR]
             energy_h[4, k] = e_strain
     energy_error = imbalance_max / input_max if input_max > 0.0 else 0.0
-    return Summary(0, -1, u0_peak, abs(u[0]), shear_peak, e_isolator, energy_error, n_subdivided,
+    return Summary(0, -1, u0_peak, abs(u[0]), shear_peak, scal[core.E_ISOLATOR], energy_error, n_subdivided,
                    n_robust, drift_max * inv_height, accel_max)
 
 
@@ -453,8 +281,7 @@ def batch(chain, layer, params, ag, dt, solver, n_blocks, out):
     subdivided, robust, drift_peak, accel_peak = (out.subdivided_steps, out.robust_steps, out.drift_peak,
                                                   out.accel_peak)
     for b in prange(n_blocks):
-        lo = (runs * b) // n_blocks
-        hi = (runs * (b + 1)) // n_blocks
+        lo, hi = core.block(runs, n_blocks, b)
         for run in range(lo, hi):
             one = Layer(params[run], layer.count, layer.scale, layer.state0)
             s = integrate(chain, one, ag, dt, solver, none)

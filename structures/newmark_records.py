@@ -72,7 +72,13 @@ class Solver(NamedTuple):
 
 
 class Histories(NamedTuple):
-    """Output histories, one row per output step (nt of them), or zero rows: peaks only."""
+    """Output histories, one row per output step (nt of them), or zero rows: peaks only.
+
+    The shapes are those of the unidirectional kernel; the plan kernel's
+    (:class:`structures.plan_newmark_records.PlanHistories`) put a leading direction axis
+    (2: x, y) on every field but ``iterations``, ``levels`` and ``robust``, so that
+    :meth:`direction` is a unidirectional record.
+    """
 
     disp: np.ndarray
     """(nt, ndof) displacement relative to the ground [m]."""
@@ -96,12 +102,19 @@ class Histories(NamedTuple):
     """(nt,) bool: the robust local solve acted in the output step (a deviation from OpenSees)."""
 
     @staticmethod
-    def allocate(nt: int, ndof: int) -> Histories:
-        """Uninitialised histories for ``nt`` output steps (``nt = 0``: none)."""
-        e = np.empty
-        return Histories(e((nt, ndof)), e((nt, ndof)), e((nt, ndof - 1)), e((nt, ndof - 1)), e(nt), e(nt),
-                         e((N_ENERGY, nt)), np.zeros(nt, dtype=np.int64), np.zeros(nt, dtype=np.int64),
+    def allocate(nt: int, ndof: int, directions: tuple[int, ...] = ()) -> Histories:
+        """Uninitialised histories for ``nt`` output steps (``nt = 0``: none), with the leading
+        axes ``directions`` (``(2,)`` in plan) on the per-direction fields."""
+        def e(*shape):
+            return np.empty(directions + shape)
+
+        return Histories(e(nt, ndof), e(nt, ndof), e(nt, ndof - 1), e(nt, ndof - 1), e(nt), e(nt),
+                         e(N_ENERGY, nt), np.zeros(nt, dtype=np.int64), np.zeros(nt, dtype=np.int64),
                          np.zeros(nt, dtype=np.bool_))
+
+    def direction(self, d: int) -> Histories:
+        """The unidirectional histories of direction ``d`` of plan histories (views)."""
+        return Histories(*(x[d] for x in self[:7]), self.iterations, self.levels, self.robust)
 
 
 class Summary(NamedTuple):
@@ -131,27 +144,24 @@ class Summary(NamedTuple):
     """(ndof - 1,) peak absolute floor acceleration [m/s^2]."""
 
 
-class Batch(NamedTuple):
-    """Per-run results of a batch: one entry (or row) per parameter set, fields of
-    :class:`Summary`."""
+def batch_record(summary: type, name: str, per_run) -> type:
+    """The record of a batch's results for the summary record ``summary``: its fields, each an
+    array with one entry (or row) per run.  ``allocate(runs, stories)`` gives zeroed results,
+    ``per_run(stories)`` mapping a field to the shape of one run's value (default scalar); int64
+    for ``status`` and the ``*_steps`` counts.  The class lives in ``summary``'s module."""
+    cls = NamedTuple(name, [(f, np.ndarray) for f in summary._fields])
+    cls.__module__ = summary.__module__
+    cls.__doc__ = f"Per-run results of a batch, one entry (or row) per run: :class:`{summary.__name__}`."
 
-    status: np.ndarray
-    iso_disp_peak: np.ndarray
-    iso_disp_residual: np.ndarray
-    base_shear_peak: np.ndarray
-    iso_work: np.ndarray
-    energy_error: np.ndarray
-    subdivided_steps: np.ndarray
-    robust_steps: np.ndarray
-    drift_peak: np.ndarray
-    """(runs, ndof - 1)."""
-    accel_peak: np.ndarray
-    """(runs, ndof - 1)."""
-
-    @staticmethod
-    def allocate(runs: int, stories: int) -> Batch:
+    def allocate(runs: int, stories: int) -> cls:
         """Zeroed results for ``runs`` analyses of a building with ``stories`` stories."""
-        z = np.zeros
-        i8 = np.int64
-        return Batch(z(runs, dtype=i8), z(runs), z(runs), z(runs), z(runs), z(runs), z(runs, dtype=i8),
-                     z(runs, dtype=i8), z((runs, stories)), z((runs, stories)))
+        shapes = per_run(stories)
+        return cls(*(np.zeros((runs, *shapes.get(f, ())),
+                              dtype=np.int64 if f == "status" or f.endswith("_steps") else float)
+                     for f in summary._fields))
+
+    cls.allocate = staticmethod(allocate)
+    return cls
+
+
+Batch = batch_record(Summary, "Batch", lambda stories: {"drift_peak": (stories,), "accel_peak": (stories,)})

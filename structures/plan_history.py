@@ -23,11 +23,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from types import ModuleType
 
-import numba
 import numpy as np
 
-from rrfrei.laws import STATUS_MESSAGES, specialise
 from rrfrei.laws import plan as plan_laws
+from rrfrei.laws import specialise
 from structures import energy as _energy
 from structures import plan_energy as _plan_energy
 from structures.building import ShearBuilding
@@ -38,7 +37,13 @@ from structures.history import (
     Response,
     _model,
     _solver,
+    batch_demands,
+    failure,
+    first_row,
+    on_step,
     param_rows,
+    response,
+    run_batch,
 )
 from structures.newmark_records import Chain, Layer
 from structures.plan_newmark_records import PlanBatch, PlanHistories
@@ -177,8 +182,6 @@ def _plan_ground(ground, dt) -> tuple[str, np.ndarray, float]:
         except (TypeError, ValueError):
             raise ValueError(f"dt = {dt!r} is invalid: expected a finite number > 0 s") from None
         step = None
-    if not (np.isfinite(rdt) and rdt > 0.0):
-        raise ValueError(f"ground {name!r}: dt = {rdt!r} is invalid: expected a finite number > 0 s")
     if acc.ndim != 2 or acc.shape[1] != 2 or acc.shape[0] < 2:
         one = ""
         if acc.ndim == 1:
@@ -187,31 +190,7 @@ def _plan_ground(ground, dt) -> tuple[str, np.ndarray, float]:
             f"ground {name!r}: accel must be an (n, 2) array (x, y per sample, n >= 2) [m/s^2], "
             f"got shape {acc.shape}{one}"
         )
-    bad = np.argwhere(~np.isfinite(acc))
-    if bad.size:
-        i, a = (int(c) for c in bad[0])
-        raise ValueError(
-            f"ground {name!r}: accel[{i}, {a}] = {float(acc[i, a])!r} (component {DIRECTIONS[a]}, "
-            f"t = {i * rdt:g} s) is not finite"
-        )
-    if step is None:
-        return name, np.ascontiguousarray(acc), rdt
-    try:
-        h = float(step)
-    except (TypeError, ValueError):
-        h = float("nan")
-    if h == rdt:
-        return name, np.ascontiguousarray(acc), rdt
-    if not (np.isfinite(h) and 0.0 < h <= rdt):
-        raise ValueError(
-            f"dt = {step!r} is invalid for ground {name!r}: expected 0 < dt <= the record step {rdt:g} s "
-            "(the record is interpolated linearly onto the finer step)"
-        )
-    duration = (acc.shape[0] - 1) * rdt
-    n = int(np.floor(duration / h * (1.0 + 1e-12))) + 1
-    t = np.arange(n) * h
-    tr = np.arange(acc.shape[0]) * rdt
-    return name, np.ascontiguousarray(np.column_stack([np.interp(t, tr, acc[:, a]) for a in (0, 1)])), h
+    return on_step("ground", name, acc, rdt, step)
 
 
 def _chains(building, building_y) -> tuple[Chain, Chain]:
@@ -329,47 +308,27 @@ def plan_time_history(
         k = run.failed_step
         iso = building.isolator
         raise ConvergenceError(
-            f"ground {name!r}: the step to t = {k * h:.6g} s (step {k}) failed even in "
-            f"{2 ** solver.max_levels} substeps: "
-            f"{STATUS_MESSAGES.get(int(run.status), f'status {run.status}')}; state at "
-            f"t = {(k - 1) * h:.6g} s: isolator displacement ({hist.disp[0, k - 1, 0]:.6g}, "
+            failure("ground", name, k, h, solver, run.status)
+            + f"isolator displacement ({hist.disp[0, k - 1, 0]:.6g}, "
             f"{hist.disp[1, k - 1, 0]:.6g}) m, force ({hist.isolator_force[0, k - 1]:.6g}, "
             f"{hist.isolator_force[1, k - 1]:.6g}) kN; plan law {pspec.name!r} with parameters "
             f"{pspec.law.as_dict(p)}, {iso.count} bearings, length_scale {iso.length_scale:g}"
         )
     time = np.arange(n) * h
-    subdivided = np.flatnonzero(hist.levels > 0)
+    x, y = (hist.direction(d) for d in range(2))
     ex, ey = _plan_energy.by_direction(hist.energy)
-    per = []
-    for d, e in enumerate((ex, ey)):
-        per.append(Response(
-            record=name,
-            time=time,
-            isolator_disp=hist.disp[d, :, 0],
-            isolator_force=hist.isolator_force[d],
-            floor_disp=hist.disp[d, :, 1:],
-            drift=hist.drift[d],
-            drift_ratio=hist.drift_ratio[d],
-            floor_accel_abs=hist.accel[d, :, 1:],
-            base_accel_abs=hist.accel[d, :, 0],
-            base_shear=hist.base_shear[d],
-            energy=e,
-            energy_error=_energy.balance_error(e),
-            newton_iterations=hist.iterations,
-            subdivided_steps=subdivided,
-        ))
     return PlanResponse(
         record=name,
         time=time,
-        x=per[0],
-        y=per[1],
-        isolator_plan_disp=np.hypot(hist.disp[0, :, 0], hist.disp[1, :, 0]),
+        x=response(name, time, x, ex, _energy.balance_error(ex)),
+        y=response(name, time, y, ey, _energy.balance_error(ey)),
+        isolator_plan_disp=np.hypot(x.disp[:, 0], y.disp[:, 0]),
         isolator_plan_disp_max=float(run.iso_plan_disp_peak),
-        isolator_plan_force=np.hypot(hist.isolator_force[0], hist.isolator_force[1]),
+        isolator_plan_force=np.hypot(x.isolator_force, y.isolator_force),
         energy=_plan_energy.total(hist.energy),
         energy_error=float(run.energy_error),
         newton_iterations=hist.iterations,
-        subdivided_steps=subdivided,
+        subdivided_steps=np.flatnonzero(hist.levels > 0),
     )
 
 
@@ -424,28 +383,12 @@ def plan_time_history_batch(
     chain_x, chain_y = _chains(building, building_y)
     solver = _solver(gamma, beta, tol, max_iter, max_subdivisions, False)
     _, ag, h = _plan_ground(ground, dt)
-    runs = P.shape[0]
-    if n_blocks is None:
-        n_blocks = 4 * numba.get_num_threads()
-    res = PlanBatch.allocate(runs, chain_x.mass.size - 1)
-    if runs:
-        blocks = max(1, min(int(n_blocks), runs))
-        kernel(pspec).batch(chain_x, chain_y, _layer(building, pspec, P[0]), P, ag, h, solver, blocks, res)
-    ok = res.status == 0
-    out = {
-        "iso_plan_disp_peak": res.iso_plan_disp_peak.copy(),
-        "iso_plan_disp_residual": res.iso_plan_disp_residual,
-        "iso_disp_peak": res.iso_disp_peak,
-        "base_shear_peak": res.base_shear_peak,
-        "drift_peak": res.drift_peak,
-        "floor_acc_peak": res.accel_peak,
-        "iso_energy": res.iso_work,
-        "energy_error": res.energy_error,
-    }
-    for arr in out.values():
-        arr[~ok] = np.nan
-    out["iso_plan_disp_max_abs"] = res.iso_plan_disp_peak
-    out["subdivided_steps"] = res.subdivided_steps
-    out["status"] = res.status
-    out["converged"] = ok
-    return out
+    layer = _layer(building, pspec, first_row(P))
+    res = run_batch(kernel(pspec).batch, (chain_x, chain_y, layer, P, ag, h, solver),
+                    PlanBatch.allocate(P.shape[0], chain_x.mass.size - 1), P.shape[0], n_blocks)
+    return batch_demands(res, {"iso_plan_disp_peak": "iso_plan_disp_peak",
+                               "iso_plan_disp_residual": "iso_plan_disp_residual",
+                               "iso_disp_peak": "iso_disp_peak", "base_shear_peak": "base_shear_peak",
+                               "drift_peak": "drift_peak", "floor_acc_peak": "accel_peak",
+                               "iso_energy": "iso_work", "energy_error": "energy_error"},
+                         ("iso_plan_disp_max_abs", "iso_plan_disp_peak"), ("subdivided_steps",))

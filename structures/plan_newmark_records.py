@@ -3,10 +3,10 @@
 The inputs are the records of the unidirectional kernel (:mod:`structures.newmark_records`): one
 :class:`~structures.newmark_records.Chain` per horizontal direction (x, y), one
 :class:`~structures.newmark_records.Layer` for the coupled isolator layer and one
-:class:`~structures.newmark_records.Solver`.  The outputs carry a leading axis of length 2 for
-the direction (0: x, 1: y).  They live in a module of their own so that every per-law instance of
-the template shares one class for each (see :mod:`rrfrei.laws.specialise`).  Units: kN, m, s,
-tonnes.
+:class:`~structures.newmark_records.Solver`.  The histories are the unidirectional
+:class:`~structures.newmark_records.Histories` with a leading axis of length 2 for the direction
+(0: x, 1: y).  They live in a module of their own so that every per-law instance of the template
+shares one class for each (see :mod:`rrfrei.laws.specialise`).  Units: kN, m, s, tonnes.
 """
 
 from __future__ import annotations
@@ -15,38 +15,20 @@ from typing import NamedTuple
 
 import numpy as np
 
-from structures.newmark_records import N_ENERGY
+from structures.newmark_records import Histories, batch_record
 
 
-class PlanHistories(NamedTuple):
-    """Output histories, one entry per output step (nt of them), or nt = 0: peaks only."""
+class PlanHistories(Histories):
+    """:class:`~structures.newmark_records.Histories` per direction: ``disp`` (2, nt, ndof),
+    ``energy`` (2, 5, nt), ...; ``iterations``, ``levels`` and ``robust`` (nt,) are shared
+    (``robust`` stays False: the plan laws have no robust local solve)."""
 
-    disp: np.ndarray
-    """(2, nt, ndof) displacement relative to the ground [m], per direction."""
-    accel: np.ndarray
-    """(2, nt, ndof) absolute acceleration [m/s^2]."""
-    drift: np.ndarray
-    """(2, nt, ndof - 1) story drift, DOF i minus DOF i-1 [m]."""
-    drift_ratio: np.ndarray
-    """(2, nt, ndof - 1) drift / story height [-]."""
-    isolator_force: np.ndarray
-    """(2, nt) isolator layer force components [kN]."""
-    base_shear: np.ndarray
-    """(2, nt) shear of story 1, spring and dashpot [kN]."""
-    energy: np.ndarray
-    """(2, 5, nt) energy terms per direction [kN m] (rows of :data:`structures.energy.TERMS`)."""
-    iterations: np.ndarray
-    """(nt,) int64 Newton iterations per output step (summed over its substeps)."""
-    levels: np.ndarray
-    """(nt,) int64 subdivision level of the output step (0: one step, l: 2^l substeps)."""
+    __slots__ = ()
 
     @staticmethod
     def allocate(nt: int, ndof: int) -> PlanHistories:
         """Uninitialised histories for ``nt`` output steps (``nt = 0``: none)."""
-        e = np.empty
-        return PlanHistories(e((2, nt, ndof)), e((2, nt, ndof)), e((2, nt, ndof - 1)),
-                             e((2, nt, ndof - 1)), e((2, nt)), e((2, nt)), e((2, N_ENERGY, nt)),
-                             np.zeros(nt, dtype=np.int64), np.zeros(nt, dtype=np.int64))
+        return PlanHistories(*Histories.allocate(nt, ndof, (2,)))
 
 
 class PlanSummary(NamedTuple):
@@ -77,29 +59,5 @@ class PlanSummary(NamedTuple):
     """(2, ndof - 1) peak |absolute floor acceleration| per direction and floor [m/s^2]."""
 
 
-class PlanBatch(NamedTuple):
-    """Per-run results of a batch: one entry (or row) per parameter set, fields of
-    :class:`PlanSummary`."""
-
-    status: np.ndarray
-    iso_plan_disp_peak: np.ndarray
-    iso_disp_peak: np.ndarray
-    """(runs, 2)."""
-    iso_plan_disp_residual: np.ndarray
-    base_shear_peak: np.ndarray
-    """(runs, 2)."""
-    iso_work: np.ndarray
-    energy_error: np.ndarray
-    subdivided_steps: np.ndarray
-    drift_peak: np.ndarray
-    """(runs, 2, stories)."""
-    accel_peak: np.ndarray
-    """(runs, 2, stories)."""
-
-    @staticmethod
-    def allocate(runs: int, stories: int) -> PlanBatch:
-        """Zeroed results for ``runs`` analyses of a building with ``stories`` stories."""
-        z = np.zeros
-        i8 = np.int64
-        return PlanBatch(z(runs, dtype=i8), z(runs), z((runs, 2)), z(runs), z((runs, 2)), z(runs),
-                         z(runs), z(runs, dtype=i8), z((runs, 2, stories)), z((runs, 2, stories)))
+PlanBatch = batch_record(PlanSummary, "PlanBatch", lambda stories: {
+    "iso_disp_peak": (2,), "base_shear_peak": (2,), "drift_peak": (2, stories), "accel_peak": (2, stories)})

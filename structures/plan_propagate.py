@@ -32,12 +32,12 @@ import math
 import os
 from collections.abc import Callable, Mapping, Sequence
 
-import numba
 import numpy as np
 import pandas as pd
 
 from rrfrei.gap.design import bound_params
 from rrfrei.laws import get as get_law
+from structures.executors import set_threads
 from structures.inputs import resolve_building, resolve_scales
 from structures.plan_design import (
     ANSWERS,
@@ -58,7 +58,7 @@ from structures.propagate import (
     response_set,
     run_chunks,
 )
-from structures.responses import ResponseSet
+from structures.responses import ResponseSet, extrapolated
 from structures.summaries import QUANTILES
 
 __all__ = ["ANSWER_COLUMNS", "check_plan_law", "design_distribution", "propagate_pairs", "resolve_pairs",
@@ -86,8 +86,7 @@ def run_plan_chunk(building, pair, scale: float, params: np.ndarray, simulate: C
     :func:`structures.plan_design.plan_arrays`; a ``RuntimeError`` (e.g.
     :class:`structures.ConvergenceError`) marks the run as not converged.
     """
-    if threads is not None:
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    set_threads(threads)
     ground = pair if scale == 1.0 else pair.scaled(scale)
     P = np.ascontiguousarray(np.atleast_2d(np.asarray(params, dtype=float)))
     if simulate is None:
@@ -159,12 +158,8 @@ def plan_chunk_table(out: dict, samples: np.ndarray, record: str, scale: float, 
     cols["energy_error"] = out["energy_error"]
     ok = np.asarray(out["converged"], dtype=bool)
     cols["converged"] = ok
-    if d_max is None:
-        cols["extrapolated"] = pd.array([pd.NA] * n, dtype="boolean")
-    else:
-        flag = pd.array(out["plan"] / length_scale > d_max * (1 + 1e-9), dtype="boolean")
-        flag[~ok] = pd.NA  # a failed run's largest displacement is unknown
-        cols["extrapolated"] = flag
+    # (a failed run's largest displacement is unknown)
+    cols["extrapolated"] = extrapolated(np.asarray(out["plan"], dtype=float), d_max, length_scale, ~ok)
     return pd.DataFrame(cols)
 
 

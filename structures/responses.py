@@ -165,9 +165,18 @@ def chunk_table(out: dict, samples: np.ndarray, record: str, scale: float, d_max
     cols["iso_energy_kNm"] = out["iso_energy"]
     cols["energy_error"] = out["energy_error"]
     cols["converged"] = np.asarray(out["converged"], dtype=bool)
-    umax = np.asarray(out["iso_disp_max_abs"], dtype=float)
-    if d_max is None:
-        cols["extrapolated"] = pd.array([pd.NA] * samples.size, dtype="boolean")
-    else:
-        cols["extrapolated"] = pd.array(umax / length_scale > d_max * (1 + 1e-9), dtype="boolean")
+    cols["extrapolated"] = extrapolated(np.asarray(out["iso_disp_max_abs"], dtype=float), d_max, length_scale)
     return pd.DataFrame(cols)
+
+
+def extrapolated(peak: np.ndarray, d_max: float | None, length_scale: float,
+                 unknown: np.ndarray | None = None) -> pd.api.extensions.ExtensionArray:
+    """Per run: did the peak isolator displacement ``peak`` [m] (prototype) exceed the
+    calibrated range ``d_max`` [m] (specimen) times ``length_scale``?  NA where ``d_max`` is
+    unknown (None) or where ``unknown`` (bool mask) is True."""
+    if d_max is None:
+        return pd.array([pd.NA] * peak.size, dtype="boolean")
+    flag = pd.array(peak / length_scale > d_max * (1 + 1e-9), dtype="boolean")
+    if unknown is not None:
+        flag[unknown] = pd.NA
+    return flag
