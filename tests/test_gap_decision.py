@@ -123,6 +123,22 @@ def test_the_one_story_holds_whichever_variant_stands_for_the_named_effect(repor
         assert ("rollover (smooth)" in md) == (variant == "smooth")
 
 
+def test_a_critical_note_comes_first_in_the_report_and_the_json_however_late_it_was_made(reports, tmp_path):
+    """Issue 29.5: "199 of 200 posterior draws failed" must not sit among routine notes."""
+    from rrfrei.notes import Note
+
+    rep = reports["control"]
+    critical = Note("law 'bouc_wen' on test 'P2': 199 of 200 posterior draws failed; its band uses "
+                    "the 1 that ran", "critical")
+    routine = [Note(f"reused {k} finished fits from the checkpoint folder", "info") for k in range(5)]
+    alt = replace(rep, notes=(*routine, critical))
+    md = write_report(alt, tmp_path).read_text()
+    assert f"> **CRITICAL: {critical}**" in md
+    assert md.index("199 of 200") < min(md.index(str(n)) for n in routine)
+    js = alt.as_dict()
+    assert js["notes"][0] == str(critical) and js["notes_severity"][0]["severity"] == "critical"
+
+
 # --- report consistency ------------------------------------------------------------------------
 def _table_rows(md: str, header_start: str) -> list[dict]:
     lines = md.splitlines()

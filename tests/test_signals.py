@@ -167,23 +167,24 @@ def test_the_convergence_rule_is_stated_once_and_quoted_by_the_help_and_the_advi
     assert CONVERGENCE_RULE in advice(d)
 
 
-@pytest.fixture(scope="module")
-def short_calibration():
+@pytest.mark.parametrize("kw", [{"steps": 300}, {"max_steps": 300}])
+def test_run_json_and_the_summary_tell_one_story_of_convergence(kw):
+    """Before: run.json could say "stopped_by": "converged" with "converged": false (the run
+    stopped on a rule over the whole chain, the final check on the thinned draws failed).  Now the
+    flag is the rule on the stored draws, whose R-hat and ESS are the summary's."""
     import warnings
 
     from rrfrei.calibration import calibrate
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return calibrate(load_test("protocol4"), "plasticity", progress=False, seed=1)
-
-
-def test_a_run_stopped_as_converged_is_converged_and_its_summary_agrees(short_calibration):
-    d = short_calibration.diagnostics
+        cal = calibrate(load_test("protocol4"), "plasticity", walkers=16, seed=1, progress=False, **kw)
+    d = cal.diagnostics
     assert d["stopped_by"] != "converged" or d["converged"]
-    assert d["converged"] == (d["rhat_max"] < 1.05 and d["ess_min"] >= 400 and d["ess_tail"] >= 400
-                              and d["stopped_by"] in ("converged", "max_steps", "time_budget"))
     assert d["rhat"] == pytest.approx(d["rhat_max"], rel=1e-9)  # the rule's number is the summary's
+    assert d["ess_bulk"] == pytest.approx(d["ess_min"], rel=1e-9)
+    draws_ok = d["rhat"] < 1.05 and min(d["ess_bulk"], d["ess_tail"]) >= 400
+    assert d["converged"] <= draws_ok  # converged implies the stored draws pass
     assert isinstance(d["at_bounds"], list) and d["rule"]
 
 

@@ -478,7 +478,7 @@ def _diagnose(kept: np.ndarray) -> tuple[float, float, float]:
     zf = norm.ppf((rankdata(fold, axis=0) - 0.375) / (fold.shape[0] + 0.25)).reshape(x.shape)
     rhat = np.maximum(_split_rhat(z), _split_rhat(zf))
     bulk = _ess(z)
-    q05, q95 = np.quantile(flat, [0.05, 0.95], axis=0)
+    q05, q95 = np.quantile(kept.reshape(-1, k), [0.05, 0.95], axis=0)  # of every draw, as arviz
     tail = np.minimum(_ess((x <= q05).astype(float)), _ess((x <= q95).astype(float)))
     return float(np.nanmin(bulk)), float(np.nanmin(tail)), float(np.nanmax(rhat))
 
@@ -493,26 +493,44 @@ def _split_rhat(x: np.ndarray) -> np.ndarray:
 
 
 def _ess(x: np.ndarray) -> np.ndarray:
-    """Effective sample size of chains ``x`` (draws, chains, k), Geyer's initial monotone
-    sequence on the multi-chain autocorrelation (Stan's and arviz' estimator)."""
+    """Effective sample size of chains ``x`` (draws, chains, k): Geyer's initial positive then
+    monotone sequence on the multi-chain autocorrelation, step for step arviz' ``_ess`` (Stan's
+    estimator, with its end-of-sequence correction), so that the convergence check and the
+    summary's ESS are the same number on the same draws."""
     n, m, k = x.shape
-    acov = _autocov(x) / n  # (n, m, k), biased
-    chain_var = acov[0] * n / (n - 1)
-    mean_var = chain_var.mean(axis=0)
-    var_plus = mean_var * (n - 1) / n + (np.var(x.mean(axis=0), axis=0, ddof=1) if m > 1 else 0.0)
+    acov = (_autocov(x) / n).mean(axis=1)  # (n, k): biased autocovariance, mean over chains
+    mean_var = acov[0] * n / (n - 1.0)
+    var_plus = mean_var * (n - 1.0) / n + (np.var(x.mean(axis=0), axis=0, ddof=1) if m > 1 else 0.0)
     out = np.full(k, np.nan)
+    resolution = np.finfo(float).resolution
     for j in range(k):
-        if not var_plus[j] > 0:
+        xj = x[:, :, j]
+        if not np.all(np.isfinite(xj)):
             continue
-        rho = 1.0 - (mean_var[j] - acov[:, :, j].mean(axis=1)) / var_plus[j]
-        rho[0] = 1.0
-        # Geyer's initial positive sequence over pairs, then made monotone
-        pairs = rho[: 2 * ((n - 1) // 2)].reshape(-1, 2).sum(axis=1)
-        neg = np.flatnonzero(pairs <= 0.0)
-        pairs = pairs[: neg[0]] if neg.size else pairs
-        pairs = np.minimum.accumulate(pairs)
-        tau = max(-1.0 + 2.0 * pairs.sum(), 1.0 / math.log10(m * n))
-        out[j] = m * n / tau
+        if np.max(xj) - np.min(xj) < resolution:
+            out[j] = float(xj.size)
+            continue
+        rho = 1.0 - (mean_var[j] - acov[:, j]) / var_plus[j]
+        rt = np.zeros(n)
+        even, odd = 1.0, float(rho[1])
+        rt[0], rt[1] = even, odd
+        t = 1
+        while t < n - 3 and even + odd > 0.0:
+            even, odd = float(rho[t + 1]), float(rho[t + 2])
+            if even + odd >= 0:
+                rt[t + 1], rt[t + 2] = even, odd
+            t += 2
+        max_t = t - 2
+        if even > 0:
+            rt[max_t + 1] = even
+        t = 1
+        while t <= max_t - 2:
+            if rt[t + 1] + rt[t + 2] > rt[t - 1] + rt[t]:
+                rt[t + 1] = rt[t + 2] = (rt[t - 1] + rt[t]) / 2.0
+            t += 2
+        tau = -1.0 + 2.0 * float(np.sum(rt[: max_t + 1])) + float(np.sum(rt[max_t + 1: max_t + 2]))
+        tau = max(tau, 1.0 / math.log10(m * n))
+        out[j] = np.nan if np.isnan(rt).any() else m * n / tau
     return out
 
 
