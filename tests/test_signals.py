@@ -278,3 +278,21 @@ def test_rubber_names_the_file_it_cannot_decode(tmp_path, capsys, option):
     code = rubber_main(argv)
     err = capsys.readouterr().err
     assert code == 2 and str(binary) in err and "UTF-8" in err
+
+
+def test_cli_calibrate_says_first_on_stderr_that_a_law_cannot_reproduce_the_test(tmp_path, capsys):
+    """Before: "NRMSE 45 %, coverage 95.9 %, converged: False" and nothing on stderr about the fit.
+    After: a CRITICAL note, before the routine ones, and the reading in result.json."""
+    code = main(["calibrate", "protocol1", "--law", "linear", "--steps", "40", "--walkers", "8",
+                 "--out", str(tmp_path / "c"), "--quiet"])
+    captured = capsys.readouterr()
+    assert code == 0
+    lines = [ln for ln in captured.err.splitlines() if ln.startswith("rrfrei calibrate: ")]
+    first = lines[0]
+    assert first.startswith("rrfrei calibrate: CRITICAL: ") and "inadequate: NRMSE" in " ".join(lines)
+    assert "fit: inadequate: NRMSE" in captured.out
+    res = json.loads((tmp_path / "c" / "result.json").read_text())
+    assert res["adequacy"]["adequacy"] == "inadequate"
+    assert res["notes"][0]["severity"] == "critical"
+    run = json.loads((tmp_path / "c" / "run.json").read_text())
+    assert run["stopped_by"] != "converged" or run["converged"]

@@ -220,6 +220,7 @@ def run(args: argparse.Namespace) -> int:
     budget = TimeBudget(args.time_budget, what="calibrate", option="--time-budget")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
+        warnings.simplefilter("always", BoundWarning)
         try:
             cal = calibrate(test, spec, noise=args.noise, seed=args.seed, walkers=args.walkers,
                             steps=args.steps, priors=args.priors, checkpoint=checkpoint,

@@ -9,9 +9,10 @@ import warnings
 from pathlib import Path
 
 from rrfrei.app.commands.calibrate import add_column_args, add_common, load
-from rrfrei.calibration import ConvergenceWarning, calibrate, compare
+from rrfrei.calibration import BoundWarning, ConvergenceWarning, calibrate, compare
 from rrfrei.calibration.compare import _too_few, runnable_laws
 from rrfrei.laws import OPENSEES_LAWS, get
+from rrfrei.notes import Note, label, ordered
 
 EXAMPLE = """\
 Example:
@@ -65,14 +66,16 @@ def run(args: argparse.Namespace) -> int:
     cals = {}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
+        warnings.simplefilter("always", BoundWarning)
         for law in laws:
             cals[law] = calibrate(test, law, noise=args.noise, seed=args.seed, walkers=args.walkers,
                                   steps=args.steps, priors=args.priors,
                                   progress=not args.no_progress and not args.json)
             cals[law].to_netcdf(out / f"posterior_{law.replace('+', '_')}.nc")
-    for w in caught:
-        if issubclass(w.category, ConvergenceWarning):
-            print(f"rrfrei compare: warning: {w.message}", file=sys.stderr)
+    notes = [Note(str(w.message), "critical" if issubclass(w.category, ConvergenceWarning) else "warning")
+             for w in caught if issubclass(w.category, (ConvergenceWarning, BoundWarning))]
+    for n in ordered(notes):  # critical first
+        print(f"rrfrei compare: {label(n)}", file=sys.stderr)
     res = compare(cals)
     res.table.to_csv(out / "compare.csv")
     res.pareto_k.to_csv(out / "pareto_k.csv")
