@@ -6,11 +6,14 @@ import argparse
 import json
 import sys
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
+from rrfrei.app.commands import shake_table_meta
 from rrfrei.budget import seconds_arg
 from rrfrei.laws import get
-from structures.shake_table_gap import shake_table_gap
+from structures.shake_table import ConsistencyWarning
+from structures.shake_table_gap import BNCS_ORDER, shake_table_gap
 from structures.shake_table_report import write_report
 
 EXAMPLE = """\
@@ -18,11 +21,17 @@ Example:
   rrfrei shake-table --out st --json            # the bundled BNCS runs: CNP100, LAC100, ICA50 -> ICA100
   rrfrei shake-table CNP100 LAC100 ICA50 ICA100 --calibrate ICA50 --holdout ICA100 --law bouc_wen --out st
   rrfrei shake-table run1/ run2.csv --calibrate run1 --holdout run2 --building bldg.toml --out st
+  rrfrei shake-table raw/ICA50 raw/ICA100 --rate-hz 200 --level-order roof-first \\
+      --weights 593.3,1078.1,1036.3,703,674,2275.1 --weight-unit kN --out st   # raw BNCS folders
 
 A rerun with the same --out reuses the finished isolator fits (DIR/checkpoint).
 RUNs are given in chronological order (the isolators' state is carried from each run to the
 next); a RUN is a bundled name (CNP100, LAC100, ICA50, ICA100), a folder (a1..aN, d1..dN, u, du)
-or a CSV with its TOML sidecar.  Writes DIR/shake_table.md and its figures.
+or a CSV with its TOML sidecar.  A raw folder needs its sampling rate and level masses: the
+options below or its run.toml (docs/shake_table_data.md).  The reader's checks (a_i = d_i'' + a_g,
+levels upside down, masses in the opposite order) print warnings on stderr and in the report's
+notes; channels that contradict the stated rate stop the command (exit 2).
+Writes DIR/shake_table.md and its figures.
 
 Exit status: 0 a report was written (possibly an incomplete diagnosis: see its notes);
 1 a numerical failure (the baseline cannot be fitted, every analysis failed), with what and where;
@@ -80,6 +89,7 @@ def register(sub) -> None:
                    help=f"wall-clock limit (default {DEFAULT_BUDGET:.0f} s): the diagnosis stops with the "
                         "effects it has evaluated; 'none': no limit")
     p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    shake_table_meta.add_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -97,15 +107,18 @@ def run(args) -> int:
     if not args.rate > 0:
         raise ValueError(f"--rate must be > 0 Hz, got {args.rate}")
     draws = max(60, args.draws)
+    runs, reader_notes = shake_table_meta.read_runs(args.runs or BNCS_ORDER, args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = shake_table_gap(args.runs or None, calibrate=args.calibrate, holdout=args.holdout, law=args.law,
+        res = shake_table_gap(runs, calibrate=args.calibrate, holdout=args.holdout, law=args.law,
                               building=args.building, rate_hz=args.rate, effects=args.effects, draws=draws,
                               n_draws=args.draws, seed=args.seed, time_budget=args.time_budget,
                               progress=not args.no_progress, checkpoint=Path(args.out) / "checkpoint")
     for w in caught:
-        if w.category.__name__ in ("ConsistencyWarning",):
+        if issubclass(w.category, ConsistencyWarning):
             print(f"rrfrei shake-table: warning: {w.message}", file=sys.stderr)
+    if reader_notes:  # the reader's warnings bear on every number: first in the notes
+        res = replace(res, notes=(*(f"reading: {n}" for n in reader_notes), *res.notes))
     rep = res.report
     for e, why in rep.skipped.items():
         print(f"rrfrei shake-table: effect {e} skipped: {why}", file=sys.stderr)
