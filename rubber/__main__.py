@@ -8,6 +8,7 @@ import json
 import sys
 from pathlib import Path
 
+from rrfrei._text import plain_numbers
 from rrfrei.budget import seconds_arg
 from rrfrei.errors import NUMERICAL_ERRORS, is_numerical
 from rrfrei.extrapolation import by_source
@@ -35,46 +36,52 @@ def _parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="cmd", required=True)
     f = sub.add_parser("fit", help="fit tests (CSV/.mat) with CMA-ES", epilog=EXAMPLES["fit"])
-    f.add_argument("tests", nargs="+")
-    f.add_argument("--out", required=True)
+    f.add_argument("tests", nargs="+", help="tests: CSV (time_s, stretch, stress_MPa) or .mat files")
+    f.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder: params.json (the fit), fit.png (data and model)")
     f.add_argument("--bounds", default=None, help="'auto' or a JSON file {name: [lo, hi]}")
-    f.add_argument("--seed", type=int, default=0)
-    f.add_argument("--restarts", type=int, default=2)
-    f.add_argument("--max-evals", type=int, default=6000)
-    f.add_argument("--json", action="store_true")
+    f.add_argument("--seed", type=int, default=0, help="seed of the CMA-ES starts (default 0)")
+    f.add_argument("--restarts", type=int, default=2,
+                   help="CMA-ES restarts from new random starts (default 2)")
+    f.add_argument("--max-evals", type=int, default=6000, metavar="N",
+                   help="CMA-ES evaluations of the objective per run (default 6000)")
+    f.add_argument("--json", action="store_true", help="print the fit as JSON on stdout")
     f.add_argument("--time-budget", type=seconds_arg, default=DEFAULT_FIT_BUDGET, metavar="SECONDS|none",
                    help=f"wall-clock limit of the search [s] (default {DEFAULT_FIT_BUDGET:.0f}; 'none': no "
                         "limit); when reached, the best fit so far is written, with a warning")
     f.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     q = sub.add_parser("predict", help="error f of a parameter set on tests", epilog=EXAMPLES["predict"])
-    q.add_argument("--params", required=True)
-    q.add_argument("tests", nargs="+")
-    q.add_argument("--json", action="store_true")
+    q.add_argument("--params", required=True, metavar="JSON", help="params.json of a fit")
+    q.add_argument("tests", nargs="+", help="tests: CSV (time_s, stretch, stress_MPa) or .mat files")
+    q.add_argument("--json", action="store_true", help="print the errors as JSON on stdout")
     c = sub.add_parser("cases", help="cross-prediction study (cases A, B, C)", epilog=EXAMPLES["cases"])
-    c.add_argument("p1")
-    c.add_argument("p2")
-    c.add_argument("--out", required=True)
-    c.add_argument("--seed", type=int, default=0)
-    c.add_argument("--restarts", type=int, default=2)
-    c.add_argument("--max-evals", type=int, default=6000)
+    c.add_argument("p1", help="tests of protocol 1 (a CSV/.mat file)")
+    c.add_argument("p2", help="tests of protocol 2 (a CSV/.mat file)")
+    c.add_argument("--out", required=True, metavar="DIR", help="output folder (created if missing)")
+    c.add_argument("--seed", type=int, default=0, help="seed of the CMA-ES starts (default 0)")
+    c.add_argument("--restarts", type=int, default=2,
+                   help="CMA-ES restarts from new random starts (default 2)")
+    c.add_argument("--max-evals", type=int, default=6000, metavar="N",
+                   help="CMA-ES evaluations of the objective per run (default 6000)")
     k = sub.add_parser("cards", help="Marc/Abaqus cards, curves, equivalent linear", epilog=EXAMPLES["cards"])
-    k.add_argument("--params", required=True)
-    k.add_argument("--out", required=True)
+    k.add_argument("--params", required=True, metavar="JSON", help="params.json of a fit")
+    k.add_argument("--out", required=True, metavar="DIR", help="output folder for the cards and curves")
     g = sub.add_parser("gap", help="which effect (Mullins, permanent set) closes the gap on held-out tests",
                        description="Fit the PRF model to the calibration test, refit it with each effect, "
                        "name an effect only if it lowers BIC by > 10 and lowers the held-out NRMSE.",
                        epilog=EXAMPLES["gap"])
     g.add_argument("test", help="calibration test (CSV/.mat)")
     g.add_argument("--holdout", nargs="+", required=True, help="held-out tests (other protocols)")
-    g.add_argument("--out", required=True)
+    g.add_argument("--out", required=True, metavar="DIR", help="output folder (created if missing)")
     g.add_argument("--effects", nargs="+", default=None, help="effects to try (default all)")
     g.add_argument("--bounds", default=None, help="'auto' or a JSON file {name: [lo, hi]}")
     g.add_argument("--start", default=None, help="params.json of a previous fit to start from")
-    g.add_argument("--seed", type=int, default=0)
-    g.add_argument("--restarts", type=int, default=2)
-    g.add_argument("--max-evals", type=int, default=3000, help="CMA-ES budget per run (0: least squares "
-                   "from --start only)")
-    g.add_argument("--json", action="store_true")
+    g.add_argument("--seed", type=int, default=0, help="seed of the CMA-ES starts (default 0)")
+    g.add_argument("--restarts", type=int, default=2,
+                   help="CMA-ES restarts from new random starts (default 2)")
+    g.add_argument("--max-evals", type=int, default=3000, metavar="N",
+                   help="CMA-ES evaluations per run (default 3000; 0: least squares from --start only)")
+    g.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     return p
 
 
@@ -82,7 +89,10 @@ def _read_params(path: str):
     from .prf import PRFParams
 
     try:
-        d = json.loads(Path(path).read_text())
+        d = json.loads(Path(path).read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise UserError(f"{path}: not a UTF-8 JSON text file (byte {exc.start} is not UTF-8 text: a "
+                        "binary file, or another encoding); expected the params.json of a fit") from None
     except (OSError, json.JSONDecodeError) as exc:
         raise UserError(f"{path}: cannot read parameters ({exc})") from None
     return PRFParams.from_dict(d.get("params", d))
@@ -202,7 +212,10 @@ def _read_bounds(bounds):
     if bounds in (None, "auto"):
         return bounds
     try:
-        return json.loads(Path(bounds).read_text())
+        return json.loads(Path(bounds).read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise UserError(f"--bounds {bounds}: not a UTF-8 JSON text file (byte {exc.start} is not UTF-8 "
+                        "text); expected 'auto' or a JSON file {name: [lo, hi]}") from None
     except (OSError, json.JSONDecodeError) as exc:
         raise UserError(f"--bounds {bounds}: expected 'auto' or a JSON file ({exc})") from None
 
@@ -275,9 +288,10 @@ def main(argv: list[str] | None = None) -> int:
         return _run(a)
     except (UserError, ValueError, OSError, *NUMERICAL_ERRORS) as exc:
         if is_numerical(exc):  # NumericalFailure subclasses ValueError: test it first
-            print(f"error: numerical failure ({type(exc).__name__}): {exc}".splitlines()[0], file=sys.stderr)
+            print(plain_numbers(f"error: numerical failure ({type(exc).__name__}): {exc}").splitlines()[0],
+                  file=sys.stderr)
             return 1
-        print(f"error: {exc}".splitlines()[0], file=sys.stderr)
+        print(plain_numbers(f"error: {exc}").splitlines()[0], file=sys.stderr)
         return 2
 
 

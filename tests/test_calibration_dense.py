@@ -397,10 +397,9 @@ def test_a_dense_bouc_wen_record_is_calibrated_on_a_decimated_path_and_recovers_
         cal = calibrate(test, "bouc_wen", seed=0, progress=False, max_steps=20_000,
                         priors={"alpha2": {"kind": "normal", "a": 0.0, "b": 1.0}})
     d = cal.diagnostics
-    # the sampling rule held on the whole post-burn-in chain (the final R-hat < 1.05 of the ~15
-    # thinned stored draws per walker is a separate, noisier check, reported in the diagnostics)
-    assert d["steps"] < 20_000 and d["rhat_chain"] < 1.04, advice(d)
-    assert min(d["ess_bulk_chain"], d["ess_tail_chain"]) >= 400, advice(d)
+    # the convergence rule, one check on the stored draws, stopped the run before the cap
+    assert d["steps"] < 20_000 and cal.converged and d["stopped_by"] == "converged", advice(d)
+    assert d["rhat"] < 1.05 and min(d["ess_bulk"], d["ess_tail"]) >= 400, advice(d)
     p = d["path"]
     assert p["decimated"] and p["samples"] < test.disp.size / 2
     assert p["error_rms_sigma"] <= PATH_TOLERANCE

@@ -131,8 +131,9 @@ def test_cli_calibrate_and_compare_print_the_documented_json(tmp_path, capsys):
     assert rc == 0
     res = json.loads(out.strip().splitlines()[-1])
     assert set(res) == {"law", "map", "mean", "ci95", "sigma", "elpd_loo", "nrmse", "coverage", "converged",
-                        "holdout"}
-    assert set(res["holdout"]["protocol2"]) == {"nrmse", "coverage"}
+                        "holdout", "adequacy", "at_bounds", "notes"}
+    assert set(res["holdout"]["protocol2"]) == {"nrmse", "coverage", "systematic", "adequacy"}
+    assert set(res["adequacy"]) == {"nrmse", "systematic", "coverage", "adequacy", "reading"}
     for f in ("posterior.nc", "summary.csv", "pair.png", "loop.png", "energy_per_cycle.png",
               "cumulative_energy.png", "holdout.png"):
         assert (tmp_path / "c" / f).exists(), f
@@ -142,4 +143,7 @@ def test_cli_calibrate_and_compare_print_the_documented_json(tmp_path, capsys):
     assert rc == 0
     res = json.loads(out.strip().splitlines()[-1])
     assert res["best"] == "plasticity" and set(res["table"]) == {"linear", "plasticity"}
+    # the ranking comes with each law's absolute fit
+    assert set(res["fit"]) == {"linear", "plasticity"} and res["skipped"] == {}
+    assert res["best_reading"].startswith("best by PSIS-LOO: plasticity (")
     assert (tmp_path / "k" / "compare.png").exists()

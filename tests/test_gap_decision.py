@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -109,6 +110,35 @@ def test_the_report_table_text_and_json_of_each_case_tell_one_story(reports, tmp
         _check_one_story(md, rep.as_dict())
 
 
+def test_the_one_story_holds_whichever_variant_stands_for_the_named_effect(reports, tmp_path):
+    """Issue 29.1: the check reads the effect table's "effect (variant)" labels against the JSON's
+    effect and variant, so it holds whether a fit chose the primary form or a variant."""
+    rep = reports["rollover"]
+    for variant in ("", "smooth"):
+        ranking = tuple(replace(s, variant=variant) if s.effect == "rollover" else s
+                        for s in rep.ranking)
+        alt = replace(rep, ranking=ranking)
+        md = write_report(alt, tmp_path / (variant or "primary")).read_text()
+        _check_one_story(md, alt.as_dict())
+        assert ("rollover (smooth)" in md) == (variant == "smooth")
+
+
+def test_a_critical_note_comes_first_in_the_report_and_the_json_however_late_it_was_made(reports, tmp_path):
+    """Issue 29.5: "199 of 200 posterior draws failed" must not sit among routine notes."""
+    from rrfrei.notes import Note
+
+    rep = reports["control"]
+    critical = Note("law 'bouc_wen' on test 'P2': 199 of 200 posterior draws failed; its band uses "
+                    "the 1 that ran", "critical")
+    routine = [Note(f"reused {k} finished fits from the checkpoint folder", "info") for k in range(5)]
+    alt = replace(rep, notes=(*routine, critical))
+    md = write_report(alt, tmp_path).read_text()
+    assert f"> **CRITICAL: {critical}**" in md
+    assert md.index("199 of 200") < min(md.index(str(n)) for n in routine)
+    js = alt.as_dict()
+    assert js["notes"][0] == str(critical) and js["notes_severity"][0]["severity"] == "critical"
+
+
 # --- report consistency ------------------------------------------------------------------------
 def _table_rows(md: str, header_start: str) -> list[dict]:
     lines = md.splitlines()
@@ -122,18 +152,27 @@ def _table_rows(md: str, header_start: str) -> list[dict]:
     return rows
 
 
+def _effect_and_variant(label: str) -> tuple[str, str]:
+    """``"rollover (smooth)"`` -> ``("rollover", "smooth")``; ``"rollover"`` -> ``("rollover", "")``."""
+    m = re.fullmatch(r"(\S+) \((\S+)\)", label)
+    return (m.group(1), m.group(2)) if m else (label, "")
+
+
 def _check_one_story(md: str, js: dict) -> None:
     """The Markdown's verdict line, its effect table and the JSON agree."""
     verdict = re.search(r"\*\*Verdict: `([a-z_]+)`\*\*", md).group(1)
     assert verdict == js["verdict"]
     rows = _table_rows(md, "| effect |")
-    named = [r["effect"] for r in rows if r["named"].startswith("yes")]
+    # a row is labelled "effect" or "effect (variant)": whichever variant a fit chose, the label
+    # names the JSON's effect and variant
+    labels = [_effect_and_variant(r["effect"]) for r in rows]
+    assert labels == [(e["effect"], e["variant"]) for e in js["ranking"]]
+    named = [lab[0] for lab, r in zip(labels, rows) if r["named"].startswith("yes")]
     assert named == [e["effect"] for e in js["ranking"] if e["named"]]
     assert set(named) == set(js["combination"])
     if js["verdict"] in ("none", "unexplained", "incomplete"):
         assert named == [] and "significant: yes" not in md.lower()
     for r, e in zip(rows, js["ranking"]):
-        assert r["effect"] == e["effect"]
         assert r["passes the rule"] == ("yes" if e["passes_rule"] else "no")
     assert "coverage is not adequacy" in md
 

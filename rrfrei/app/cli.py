@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from rrfrei._text import plain_numbers
 from rrfrei.app.commands import calibrate, compare, demo, gap, gap_validate, kernels, propagate, shake_table
 from rrfrei.errors import NUMERICAL_ERRORS
 
@@ -51,13 +52,14 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except NUMERICAL_ERRORS as exc:  # before USER_ERRORS: LinAlgError is a ValueError too
-        print(f"rrfrei {args.command}: numerical failure: {type(exc).__name__}: {exc}", file=sys.stderr)
+        print(plain_numbers(f"rrfrei {args.command}: numerical failure: {type(exc).__name__}: {exc}"),
+              file=sys.stderr)
         return 1
     except USER_ERRORS as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         if isinstance(exc, (FileNotFoundError, IsADirectoryError, PermissionError)) and exc.filename:
             msg = f"{exc.strerror}: {exc.filename}"
-        print(f"rrfrei {args.command}: error: {msg}", file=sys.stderr)
+        print(plain_numbers(f"rrfrei {args.command}: error: {msg}"), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"rrfrei {args.command}: interrupted", file=sys.stderr)

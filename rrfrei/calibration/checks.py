@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from rrfrei.calibration.quality import Adequacy, adequacy
 from rrfrei.io import ShearTest
 
 __all__ = ["Prediction", "predict", "asce_7_22_checks", "nrmse", "coverage"]
@@ -92,6 +93,9 @@ class Prediction:
     (:class:`rrfrei.extrapolation.Extrapolation` records; each also issued as a warning)."""
     failed_draws: int = 0
     meta: dict = field(default_factory=dict)
+    adequacy: Adequacy | None = None
+    """NRMSE, its systematic part and the coverage read together (:mod:`.quality`): coverage
+    alone is not adequacy."""
 
     def as_dict(self) -> dict:
         """Scalars for JSON: nrmse, nrmse_map, coverage, coverage_param, energy error of the MAP."""
@@ -102,6 +106,9 @@ class Prediction:
             "nrmse": self.nrmse, "nrmse_map": self.nrmse_map, "coverage": self.coverage,
             "coverage_param": self.coverage_param, "energy_test": e_t, "energy_map": e_m,
             "n_draws": self.n_draws, "failed_draws": self.failed_draws,
+            **({} if self.adequacy is None else {
+                "systematic": self.adequacy.systematic, "adequacy": self.adequacy.level,
+                "reading": self.adequacy.sentence}),
         }
 
 
@@ -163,6 +170,7 @@ def predict(calibration, test: ShearTest, *, n: int = 200, seed: int = 0, level:
         asce=asce, n_draws=int(ok.sum()), failed_draws=int((~ok).sum()),
         meta={"level": level, "calibrated_on": cal.test.name,
               "calibrated_disp_range_m": [float(cal.test.disp.min()), float(cal.test.disp.max())]},
+        adequacy=adequacy(obs, mean, coverage(obs, lo, hi)),
     )
 
 

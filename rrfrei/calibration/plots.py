@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["pair_plot", "loop_plot", "energy_plot", "cumulative_plot"]
+__all__ = ["pair_plot", "loop_plot", "loop_title", "energy_plot", "cumulative_plot"]
 
 
 def _fig(nrows=1, ncols=1, size=(6.0, 4.0)):
@@ -67,11 +67,23 @@ def loop_plot(pred, title: str = "", ax=None):
     ax.plot(d, pred.mean, lw=0.8, color="tab:blue", label="posterior mean")
     ax.set_xlabel("shear displacement [mm]")
     ax.set_ylabel("shear force [kN]")
-    ax.set_title(title or f"{pred.law} on {pred.test.name}: NRMSE {100 * pred.nrmse:.1f} %, "
-                 f"coverage {100 * pred.coverage:.1f} %", fontsize=9)
+    ax.set_title(title or loop_title(pred), fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     return fig
+
+
+def loop_title(pred) -> str:
+    """``law on test`` with NRMSE, systematic part and coverage, and the adequacy reading: a
+    coverage shown alone reads as a good fit when the noise sd absorbed the misfit."""
+    a = pred.adequacy
+    if a is None:
+        return (f"{pred.law} on {pred.test.name}: NRMSE {100 * pred.nrmse:.1f} %, "
+                f"coverage {100 * pred.coverage:.1f} %")
+    short = {"adequate": "adequate fit", "marginal": "marginal fit: misses part of the shape",
+             "inadequate": "INADEQUATE: the law cannot reproduce this test's shape"}[a.level]
+    return (f"{pred.law} on {pred.test.name}: NRMSE {100 * a.nrmse:.1f} % (systematic "
+            f"{100 * a.systematic:.1f} %), coverage {100 * a.coverage:.1f} %\n{short}")
 
 
 def energy_plot(pred, ax=None):

@@ -89,7 +89,9 @@ class Calibration:
     map : highest posterior density point found: free law parameters, ``sigma`` [kN] (, ``rho``).
     sigma : MAP noise standard deviation [kN] (innovation sd for AR(1)).
     summary : DataFrame indexed by sampled quantity: unit, mean, MAP, sd, 2.5%, 97.5%, ESS, R-hat.
-    converged : chain >= 50 autocorrelation times, tau stable and R-hat < 1.05 for all.
+    converged : the convergence rule holds (:data:`rrfrei.calibration.sampler.CONVERGENCE_RULE`:
+        bulk and tail ESS >= 400 and R-hat < 1.05 on the stored draws, from a chain >= 10 stable
+        autocorrelation times long); the run stopped by it, or met it at its end.
     fixed : values held fixed (geometry, optional parameters at their defaults, user ``fixed=``).
     noise : "iid" or "ar1".
     diagnostics : acceptance, tau, ESS, R-hat, steps, walkers, burn, thin, evaluations, seconds, note,

@@ -10,15 +10,16 @@
    the chain is stored in law parameters), with a differential-evolution move mixture (ter Braak
    2006; Nelson et al. 2014), which copes with the strongly correlated parameters of hysteresis
    laws better than the stretch move.  With ``steps=None`` it runs in chunks of :data:`CHECK` steps
-   until, after burn-in (:func:`burn_in`), every sampled quantity has a bulk and a tail effective
-   sample size >= :data:`ESS_TARGET` (400) and a rank-normalised split R-hat < :data:`RHAT_STOP`,
-   walkers taken as chains (Vehtari et al. 2021), and the kept chain is >= :data:`MIN_TAU` (10)
-   integrated autocorrelation times long with a stable estimate of tau; at most ``max_steps``. The
-   rule used to be "50 tau with tau changing < 5 %" (Foreman-Mackey et al. 2013), a guard for
-   estimating tau itself from one chain; with 32 walkers 50 tau is an ESS of ~1,600, four times
-   what the reported means and 95 % intervals need, and it tripled the run time. The ESS rule
-   targets the quantities reported; the tau conditions keep a chain whose tau is still growing
-   (ESS over-estimated) from stopping early.
+   until the convergence rule (:data:`CONVERGENCE_RULE`, :func:`check`) holds, at most
+   ``max_steps``: on the draws that will be stored (after burn-in, :func:`burn_in`, thinned by
+   :func:`thinning` to at most ``max_draws``), every sampled quantity has a bulk and a tail
+   effective sample size >= :data:`ESS_TARGET` (400) and a rank-normalised split R-hat <
+   :data:`RHAT_LIMIT` (1.05), walkers taken as chains (Vehtari et al. 2021), and the kept chain is
+   >= :data:`MIN_TAU` (10) integrated autocorrelation times long with a stable estimate of tau.
+   The stopping rule and the final check of :func:`rrfrei.calibrate` are one function on the same
+   draws, so a run stopped as converged is converged (a rule on the whole chain with a separate
+   check on the stored draws stopped runs that then failed the check).  The tau conditions keep a
+   chain whose tau is still growing (ESS over-estimated) from stopping early.
 3. ``checkpoint=path`` stores the chain in emcee's HDF5 layout every :data:`CHECK` steps (or
    :data:`FLUSH_SECONDS`) plus the optimum in the group ``rrfrei``; rerunning with the same path
    resumes from the last stored step, so an interrupted and a complete run end with the same
@@ -44,7 +45,8 @@ from rrfrei.calibration.likelihood import Problem
 from rrfrei.calibration.priors import cube_range
 from rrfrei.calibration.reparam import sampling_coordinates
 
-__all__ = ["find_map", "polish_map", "run_chain", "ensemble_size", "ChainResult", "CHECK", "MAX_STEPS"]
+__all__ = ["find_map", "polish_map", "run_chain", "ensemble_size", "ChainResult", "CHECK", "MAX_STEPS",
+           "CONVERGENCE_RULE", "Check", "check", "thinning"]
 
 MAX_STEPS = 20_000
 
@@ -269,15 +271,16 @@ class ChainResult:
     log_prob: np.ndarray  # (steps, walkers)
     acceptance: float
     tau: np.ndarray  # (ndim,), may hold nan for very short chains
-    converged_tau: bool
+    converged: bool  # the convergence rule holds on the stored draws (Check.converged)
     tau_note: str
     evals: int
     seconds: float
     stopped_by: str = "steps"  # "converged", "steps", "max_steps" or "time_budget"
     burn: int = 0
-    ess_bulk: float = float("nan")  # smallest over parameters, post-burn chain, walkers as chains
+    thin: int = 1
+    ess_bulk: float = float("nan")  # smallest over parameters, stored draws, walkers as chains
     ess_tail: float = float("nan")
-    rhat: float = float("nan")
+    rhat: float = float("nan")  # largest over parameters, stored draws
     resumed_steps: int = 0  # steps found in the checkpoint
     coordinates: str = "law parameters"  # the sampling coordinates (rrfrei.calibration.reparam)
 
@@ -415,9 +418,8 @@ def _tau(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
     return out
 
 
-RHAT_STOP = 1.04
-"""The chunked run waits for the rank-normalised split R-hat (walkers as chains) to fall below
-this, a margin under the 1.05 that :func:`rrfrei.calibrate` requires of the stored draws."""
+RHAT_LIMIT = 1.05
+"""Largest rank-normalised split R-hat (walkers as chains) of the stored draws of a converged run."""
 ESS_TARGET = 400.0
 """Bulk and tail effective sample size every sampled quantity must reach (Vehtari et al. 2021,
 "Rank-normalization, folding, and localization: an improved R-hat", recommend > 400 in total):
@@ -427,6 +429,10 @@ MIN_TAU = 10.0
 the estimate of tau must have changed by less than :data:`TAU_CHANGE` since the last check, so
 that a short chain whose tau is still growing (its ESS over-estimated) does not stop early."""
 TAU_CHANGE = 0.10
+CONVERGENCE_RULE = (f"bulk and tail ESS >= {ESS_TARGET:.0f} and R-hat < {RHAT_LIMIT:g} on the "
+                    f"stored (thinned) draws, from a chain >= {MIN_TAU:.0f} stable "
+                    "autocorrelation times long")
+"""The convergence rule in words: the one text the CLI's help, warnings and reports quote."""
 CHECK = 100
 """Steps between convergence checks (and checkpoint writes) of a run to convergence."""
 FLUSH_SECONDS = 10.0
@@ -438,6 +444,15 @@ def burn_in(n_steps: int, tau_max: float) -> int:
     if not math.isfinite(tau_max):
         return n_steps // 2
     return min(n_steps // 2, max(n_steps // 4, int(math.ceil(2 * tau_max))))
+
+
+def thinning(n_steps: int, burn: int, tau_max: float, walkers: int, max_draws: int) -> int:
+    """Thinning of the stored draws: every ``max(tau / 2, 1)``-th step after burn-in, more when
+    that would store more than ``max_draws`` draws (walkers x draws per walker)."""
+    thin = max(1, int(tau_max / 2)) if math.isfinite(tau_max) else 1
+    per_walker = max(int(max_draws) // max(int(walkers), 1), 1)
+    need = -(-(n_steps - burn) // per_walker)  # ceil: the smallest thin storing <= per_walker each
+    return int(min(max(thin, need), max(n_steps, 1)))
 
 
 def _diagnose(kept: np.ndarray) -> tuple[float, float, float]:
@@ -452,7 +467,7 @@ def _diagnose(kept: np.ndarray) -> tuple[float, float, float]:
     from scipy.stats import norm, rankdata
 
     n, m, k = kept.shape
-    if n < 8:
+    if n < 4:
         return float("nan"), float("nan"), float("nan")
     half = n // 2
     x = np.concatenate([kept[:half], kept[n - half:]], axis=1)  # split chains: (half, 2m, k)
@@ -463,7 +478,7 @@ def _diagnose(kept: np.ndarray) -> tuple[float, float, float]:
     zf = norm.ppf((rankdata(fold, axis=0) - 0.375) / (fold.shape[0] + 0.25)).reshape(x.shape)
     rhat = np.maximum(_split_rhat(z), _split_rhat(zf))
     bulk = _ess(z)
-    q05, q95 = np.quantile(flat, [0.05, 0.95], axis=0)
+    q05, q95 = np.quantile(kept.reshape(-1, k), [0.05, 0.95], axis=0)  # of every draw, as arviz
     tail = np.minimum(_ess((x <= q05).astype(float)), _ess((x <= q95).astype(float)))
     return float(np.nanmin(bulk)), float(np.nanmin(tail)), float(np.nanmax(rhat))
 
@@ -478,31 +493,52 @@ def _split_rhat(x: np.ndarray) -> np.ndarray:
 
 
 def _ess(x: np.ndarray) -> np.ndarray:
-    """Effective sample size of chains ``x`` (draws, chains, k), Geyer's initial monotone
-    sequence on the multi-chain autocorrelation (Stan's and arviz' estimator)."""
+    """Effective sample size of chains ``x`` (draws, chains, k): Geyer's initial positive then
+    monotone sequence on the multi-chain autocorrelation, step for step arviz' ``_ess`` (Stan's
+    estimator, with its end-of-sequence correction), so that the convergence check and the
+    summary's ESS are the same number on the same draws."""
     n, m, k = x.shape
-    acov = _autocov(x) / n  # (n, m, k), biased
-    chain_var = acov[0] * n / (n - 1)
-    mean_var = chain_var.mean(axis=0)
-    var_plus = mean_var * (n - 1) / n + (np.var(x.mean(axis=0), axis=0, ddof=1) if m > 1 else 0.0)
+    acov = (_autocov(x) / n).mean(axis=1)  # (n, k): biased autocovariance, mean over chains
+    mean_var = acov[0] * n / (n - 1.0)
+    var_plus = mean_var * (n - 1.0) / n + (np.var(x.mean(axis=0), axis=0, ddof=1) if m > 1 else 0.0)
     out = np.full(k, np.nan)
+    resolution = np.finfo(float).resolution
     for j in range(k):
-        if not var_plus[j] > 0:
+        xj = x[:, :, j]
+        if not np.all(np.isfinite(xj)):
             continue
-        rho = 1.0 - (mean_var[j] - acov[:, :, j].mean(axis=1)) / var_plus[j]
-        rho[0] = 1.0
-        # Geyer's initial positive sequence over pairs, then made monotone
-        pairs = rho[: 2 * ((n - 1) // 2)].reshape(-1, 2).sum(axis=1)
-        neg = np.flatnonzero(pairs <= 0.0)
-        pairs = pairs[: neg[0]] if neg.size else pairs
-        pairs = np.minimum.accumulate(pairs)
-        tau = max(-1.0 + 2.0 * pairs.sum(), 1.0 / math.log10(m * n))
-        out[j] = m * n / tau
+        if np.max(xj) - np.min(xj) < resolution:
+            out[j] = float(xj.size)
+            continue
+        rho = 1.0 - (mean_var[j] - acov[:, j]) / var_plus[j]
+        rt = np.zeros(n)
+        even, odd = 1.0, float(rho[1])
+        rt[0], rt[1] = even, odd
+        t = 1
+        while t < n - 3 and even + odd > 0.0:
+            even, odd = float(rho[t + 1]), float(rho[t + 2])
+            if even + odd >= 0:
+                rt[t + 1], rt[t + 2] = even, odd
+            t += 2
+        max_t = t - 2
+        if even > 0:
+            rt[max_t + 1] = even
+        t = 1
+        while t <= max_t - 2:
+            if rt[t + 1] + rt[t + 2] > rt[t - 1] + rt[t]:
+                rt[t + 1] = rt[t + 2] = (rt[t - 1] + rt[t]) / 2.0
+            t += 2
+        tau = -1.0 + 2.0 * float(np.sum(rt[: max_t + 1])) + float(np.sum(rt[max_t + 1: max_t + 2]))
+        tau = max(tau, 1.0 / math.log10(m * n))
+        out[j] = np.nan if np.isnan(rt).any() else m * n / tau
     return out
 
 
 @dataclass
-class _Check:
+class Check:
+    """One evaluation of the convergence rule (:data:`CONVERGENCE_RULE`) on a chain of ``n`` steps:
+    burn-in, tau, the thinning of the stored draws and their ESS and R-hat."""
+
     burn: int
     tau: np.ndarray
     tmax: float
@@ -511,6 +547,8 @@ class _Check:
     rhat: float
     n: int = 0  # chain length checked
     diagnosed: bool = False  # ESS and R-hat computed
+    thin: int = 1
+    draws: int = 0  # stored draws (walkers x draws per walker)
 
     def tau_ok(self, n_steps: int, previous_tmax: float) -> bool:
         """The tau part of the rule: tau finite, >= MIN_TAU tau kept, tau stable since the last check."""
@@ -519,11 +557,15 @@ class _Check:
             and abs(previous_tmax - self.tmax) <= TAU_CHANGE * self.tmax
         )
 
-    def converged(self, n_steps: int, previous_tmax: float, rhat_limit: float = RHAT_STOP) -> bool:
-        return bool(
-            self.tau_ok(n_steps, previous_tmax)
-            and self.ess_bulk >= ESS_TARGET and self.ess_tail >= ESS_TARGET and self.rhat < rhat_limit
-        )
+    def converged(self, n_steps: int, previous_tmax: float) -> bool:
+        """The whole rule: :meth:`tau_ok` and ESS and R-hat of the stored draws."""
+        return bool(self.tau_ok(n_steps, previous_tmax) and self.draws_ok)
+
+    @property
+    def draws_ok(self) -> bool:
+        """ESS >= :data:`ESS_TARGET` (bulk and tail) and R-hat < :data:`RHAT_LIMIT` of the stored draws."""
+        return bool(self.ess_bulk >= ESS_TARGET and self.ess_tail >= ESS_TARGET
+                    and self.rhat < RHAT_LIMIT)
 
     def text(self) -> str:
         if not self.diagnosed:
@@ -532,22 +574,26 @@ class _Check:
                 f"R-hat {self.rhat:.3f}")
 
 
-def _check(chain: np.ndarray, previous_tmax: float | None = None) -> _Check:
-    """Burn-in, tau, ESS and R-hat of the chain after burn-in (the rule of :func:`run_chain`).
+def check(chain: np.ndarray, max_draws: int, previous_tmax: float | None = None) -> Check:
+    """Burn-in, tau, thinning and the stored draws' ESS and R-hat of a chain (steps, walkers, k):
+    the convergence rule of :func:`run_chain` and the final check of :func:`rrfrei.calibrate`.
 
-    With ``previous_tmax`` (the last check's tau) the ESS and R-hat, 70 % of a check's cost, are
-    computed only when the tau part of the rule (:meth:`_Check.tau_ok`) holds, the only case in
-    which they can decide it (nan otherwise).
+    With ``previous_tmax`` (the last check's tau) the ESS and R-hat are computed only when the
+    tau part of the rule (:meth:`Check.tau_ok`) holds, the only case in which they can decide it
+    (nan otherwise).
     """
-    n = chain.shape[0]
+    n, nw = chain.shape[0], chain.shape[1]
     t0 = _tau(chain[n // 4:])
     burn = burn_in(n, float(np.max(t0)) if np.all(np.isfinite(t0)) else math.nan)
     kept = chain[burn:]
     tau = t0 if burn == n // 4 else _tau(kept)  # same samples: same tau
     tmax = float(np.max(tau)) if np.all(np.isfinite(tau)) else math.nan
-    chk = _Check(burn, tau, tmax, math.nan, math.nan, math.nan, n=n)
+    thin = thinning(n, burn, tmax, nw, max_draws)
+    stored = kept[::thin]
+    chk = Check(burn, tau, tmax, math.nan, math.nan, math.nan, n=n, thin=thin,
+                draws=int(stored.shape[0] * nw))
     if previous_tmax is None or chk.tau_ok(n, previous_tmax):
-        chk.ess_bulk, chk.ess_tail, chk.rhat = _diagnose(kept)
+        chk.ess_bulk, chk.ess_tail, chk.rhat = _diagnose(stored)
         chk.diagnosed = True
     return chk
 
@@ -641,6 +687,7 @@ def run_chain(
     progress: bool,
     max_steps: int = MAX_STEPS,
     budget: TimeBudget | None = None,
+    max_draws: int = 1000,
 ) -> ChainResult:
     """Run the ensemble (see the module docstring) and return the whole stored chain.
 
@@ -648,9 +695,8 @@ def run_chain(
     ----------
     problem, theta0 : the problem and the optimum the walkers start around.
     walkers : ensemble size (default max(32, 4 ndim)).
-    steps : fixed number of steps, or None: run to the convergence rule (checked every
-        :data:`CHECK` steps: post burn-in bulk and tail ESS >= :data:`ESS_TARGET`, R-hat <
-        :data:`RHAT_STOP`, >= :data:`MIN_TAU` tau long, tau stable), at most ``max_steps``.
+    steps : fixed number of steps, or None: run to the convergence rule (:data:`CONVERGENCE_RULE`,
+        checked every :data:`CHECK` steps by :func:`check`), at most ``max_steps``.
     seed : seed of the initial ensemble and of the moves (a resumed run reseeds from seed and
         the number of stored steps, so it is reproducible too).
     checkpoint : HDF5 file (emcee's layout); an existing chain in it is continued.
@@ -658,6 +704,8 @@ def run_chain(
     max_steps : step cap of a run to convergence.
     budget : wall-clock budget: when it runs out the chain stops after the current step, is
         written to the checkpoint, and ``stopped_by`` is ``"time_budget"``.
+    max_draws : most draws stored (walkers x draws per walker), which sets the thinning whose
+        draws the rule checks (:func:`thinning`).
     """
     import time
 
@@ -702,8 +750,8 @@ def run_chain(
     previous = math.inf
     try:
         if steps is None and resumed >= 3 * CHECK:  # a resumed chain may already be converged
-            previous = _check(store.chain[:-CHECK]).tmax
-            chk = _check(store.chain, previous)
+            previous = check(store.chain[:-CHECK], max_draws).tmax
+            chk = check(store.chain, max_draws, previous)
             if chk.converged(store.n, previous):
                 stopped_by = "converged"
                 target = store.n
@@ -732,7 +780,7 @@ def run_chain(
                 stopped_by = "time_budget"
                 break
             if steps is None and store.n >= 2 * CHECK:
-                chk = _check(store.chain, previous)
+                chk = check(store.chain, max_draws, previous)
                 bar.set_postfix_str(chk.text())
                 if chk.converged(store.n, previous):
                     stopped_by = "converged"
@@ -740,7 +788,7 @@ def run_chain(
                 previous = chk.tmax
                 if math.isfinite(chk.tmax):
                     need = chk.burn + MIN_TAU * chk.tmax
-                    if chk.ess_bulk > 0:
+                    if chk.ess_bulk > 0:  # the stored draws' ESS grows with the chain until ~ draws
                         need = max(need, store.n * ESS_TARGET / max(min(chk.ess_bulk, chk.ess_tail), 1.0))
                     _set_total(bar, min(int(need) + CHECK, max_steps) - resumed)
     finally:
@@ -748,30 +796,33 @@ def run_chain(
         bar.close()
     chain, logp = store.chain, store.logp
     if chk is None or not chk.diagnosed or chk.n != chain.shape[0]:  # else: the last check is this one
-        chk = _check(chain)
+        chk = check(chain, max_draws)
     tau, tmax = chk.tau, chk.tmax
     tau_half = _tau(chain[chk.burn: chk.burn + (chain.shape[0] - chk.burn) * 4 // 5])
     long_enough = bool(np.all(np.isfinite(tau)) and chain.shape[0] - chk.burn >= MIN_TAU * tmax)
     stable = bool(np.all(np.isfinite(tau_half)) and np.all(np.abs(tau - tau_half) <= 0.2 * tau))
-    enough = bool(chk.ess_bulk >= ESS_TARGET and chk.ess_tail >= ESS_TARGET)
+    converged = stopped_by == "converged" or (long_enough and stable and chk.draws_ok)
     if not long_enough:
         note = (note + "; " if note else "") + (
             f"the chain has {chain.shape[0] - chk.burn} steps after burn-in, fewer than {MIN_TAU:g} "
             f"autocorrelation times (tau = {tmax:.0f} steps)"
         )
-    elif not stable:
+    elif not stable and not converged:
         note = (note + "; " if note else "") + "the autocorrelation time is still changing"
-    if not enough:
+    if not min(chk.ess_bulk, chk.ess_tail) >= ESS_TARGET:
         note = (note + "; " if note else "") + (
-            f"effective sample size {min(chk.ess_bulk, chk.ess_tail):.0f} < {ESS_TARGET:.0f}")
-    if stopped_by == "max_steps" and steps is None and long_enough and stable and enough:
+            f"effective sample size {min(chk.ess_bulk, chk.ess_tail):.0f} < {ESS_TARGET:.0f} "
+            f"(stored draws)")
+    if not chk.rhat < RHAT_LIMIT:
+        note = (note + "; " if note else "") + f"R-hat {chk.rhat:.3f} >= {RHAT_LIMIT:g} (stored draws)"
+    if stopped_by == "max_steps" and steps is None and converged:
         stopped_by = "converged"  # reached the rule exactly at the cap
     acc = float(np.mean(store.accepted / max(store.n, 1)))
     return ChainResult(
         chain=chain, log_prob=logp, acceptance=acc, tau=tau,
-        converged_tau=long_enough and stable and enough, tau_note=note,
+        converged=converged, tau_note=note,
         evals=problem.n_evals - evals0, seconds=time.perf_counter() - t0, stopped_by=stopped_by,
-        burn=chk.burn, ess_bulk=chk.ess_bulk, ess_tail=chk.ess_tail, rhat=chk.rhat,
+        burn=chk.burn, thin=chk.thin, ess_bulk=chk.ess_bulk, ess_tail=chk.ess_tail, rhat=chk.rhat,
         resumed_steps=resumed, coordinates=coords.name,
     )
 
@@ -793,6 +844,19 @@ def _stored_iterations(backend: emcee.backends.HDFBackend) -> int:
 # ---------------------------------------------------------------------------------------------
 # checkpoint metadata (the optimum, so a resumed run does not search again)
 # ---------------------------------------------------------------------------------------------
+def check_checkpoint(checkpoint: str | Path) -> None:
+    """A ValueError naming the file when ``checkpoint`` exists but is not an HDF5 file (or is a
+    folder): h5py's own error is a traceback through its C layer."""
+    import h5py
+
+    p = Path(checkpoint)
+    if p.is_dir():
+        raise ValueError(f"checkpoint {p} is a folder; expected an HDF5 file path (e.g. {p / 'chain.h5'})")
+    if p.exists() and not h5py.is_hdf5(str(p)):
+        raise ValueError(f"checkpoint {p} exists and is not an HDF5 file: give another path (the "
+                         "chain is stored there) or remove the file")
+
+
 def save_optimum(checkpoint: str | Path, meta: dict) -> None:
     import h5py
 

@@ -85,6 +85,7 @@ from rrfrei.gap.catalogue import ScreenContext, catalogue, screen_all
 from rrfrei.gap.model import FitResult, GapModel, IsolatorModel, velocity, white_noise
 from rrfrei.gap.residuals import cycle_levels, energy_error, gap, segment_table, systematic_gap
 from rrfrei.io import ShearTest, read_test
+from rrfrei.notes import SEVERITIES, Note, as_dicts, ordered
 
 __all__ = ["EffectScore", "Metrics", "GapReport", "diagnose", "diagnose_gap", "CONFOUNDED", "Checkpoint",
            "loco"]
@@ -243,7 +244,8 @@ class GapReport:
             "time_budget": {"reached": bool(self.budget_message), "message": self.budget_message or None,
                             "elapsed_s": _num(self.elapsed)},
             "reused_from_checkpoint": list(self.reused),
-            "notes": list(self.notes),
+            "notes": [str(n) for n in ordered(self.notes)],  # critical first
+            "notes_severity": as_dicts(self.notes),
         }
 
 
@@ -668,7 +670,8 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
             try:
                 where = segment_table(data, pr.mean, pr.lower, pr.upper, sc.noise[id(data)])
             except NUMERICAL_ERRORS as exc:
-                notes.append(f"residual segment table skipped: {_failure('segment_table', exc)}")
+                notes.append(Note(f"residual segment table skipped: {_failure('segment_table', exc)}",
+                                  "warning"))
         ctx = _screen_context(model, data, base)
         screens = screen_all(ctx) if ctx is not None else {e: float("nan") for e in known}
         bar.update()
@@ -743,9 +746,10 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                         if not _beats(sc, win, fits[other.law]):
                             tied.append(other.effect)
                 if tied:
-                    notes.append(
+                    notes.append(Note(
                         f"the calibration protocol's amplitude only grows, so {diagnosis} cannot be told "
-                        f"apart from {', '.join(tied)} on it alone: give held-out tests (--holdout)")
+                        f"apart from {', '.join(tied)} on it alone: give held-out tests (--holdout)",
+                        "critical"))
                     tied.insert(0, diagnosis)
                     diagnosis = "none"
         combination: list[str] = [] if diagnosis == "none" else [diagnosis]
@@ -803,13 +807,14 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
         listed = "; ".join(f"{e}: {why}" for e, why in missing.items())
         if diagnosis == "none":
             diagnosis = "incomplete"
-            notes.append(f"incomplete diagnosis: no evaluated effect is significant, but "
-                         f"{len(missing)} of {len(effects)} effects were not evaluated ({listed})")
+            notes.append(Note(f"incomplete diagnosis: no evaluated effect is significant, but "
+                              f"{len(missing)} of {len(effects)} effects were not evaluated ({listed})",
+                              "critical"))
         else:
-            notes.append(f"provisional diagnosis: {len(missing)} of {len(effects)} effects were not "
-                         f"evaluated ({listed}); one of them might score higher")
+            notes.append(Note(f"provisional diagnosis: {len(missing)} of {len(effects)} effects were "
+                              f"not evaluated ({listed}); one of them might score higher", "critical"))
     for e, why in skipped.items():
-        notes.append(f"effect {e} skipped: {why}")
+        notes.append(Note(f"effect {e} skipped: {why}", "warning"))
     budget_message = ""
     if untried or stopped:
         done = [s.effect for s in ranking]
@@ -817,15 +822,16 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
             f"evaluated: {', '.join(done) or 'baseline only'}"
             + (f"; not evaluated: {', '.join(untried)}" if untried else "")
             + ("; combination search cut short" if stopped else ""))
-        notes.append(budget_message)
+        notes.append(Note(budget_message, "warning"))
     for f in fits.values():
-        if getattr(f, "note", ""):
-            notes.append(f.note)
+        if getattr(f, "note", ""):  # the fit's own notes, at the most severe of their severities
+            sev = min((n.severity for n in getattr(f, "notes", ())), key=SEVERITIES.index, default="info")
+            notes.append(Note(f.note, sev))
     if ck.reused:
         notes.append(f"reused {len(ck.reused)} finished fits from the checkpoint folder "
                      f"({', '.join(ck.reused)})")
     if ck.error:
-        notes.append(ck.error)
+        notes.append(Note(ck.error, "warning"))
     try:
         verdict, evidence = _verdict(sc, diagnosis, combination, base, current, ranking, steps, where,
                                      tied, missing)
@@ -833,7 +839,8 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
         verdict, evidence = diagnosis, {"error": _failure("verdict", exc)}
     return GapReport(law=model.name, diagnosis=diagnosis, combination=tuple(combination), where=where,
                      screens=screens, ranking=ranking, steps=tuple(steps), baseline=bm, final=final,
-                     notes=tuple(notes), fits=fits, calibration_data=data, holdout_data=tuple(holdout),
+                     notes=tuple(ordered(notes)), fits=fits, calibration_data=data,
+                     holdout_data=tuple(holdout),
                      skipped=skipped, not_evaluated=untried, budget_message=budget_message,
                      elapsed=budget.elapsed, reused=tuple(ck.reused), verdict=verdict, evidence=evidence)
 

@@ -53,6 +53,7 @@ from rrfrei.gap.catalogue import Scales, catalogue
 from rrfrei.io import ShearTest, concat_tests
 from rrfrei.laws import LawSpec, get
 from rrfrei.laws.specialise import history
+from rrfrei.notes import Note
 
 __all__ = ["GapModel", "FitResult", "Prediction", "IsolatorModel", "IsolatorFit", "gaussian_loglik",
            "simulate_retry",
@@ -270,10 +271,14 @@ class IsolatorFit(FitResult):
     def name(self) -> str:  # type: ignore[override]
         return self.spec.name
 
-    def _add_note(self, text: str) -> None:
+    notes: list = field(default_factory=list, repr=False)
+    """The texts :meth:`_add_note` appended, as :class:`rrfrei.notes.Note` (with a severity)."""
+
+    def _add_note(self, text: str, severity: str = "info") -> None:
         """Append ``text`` to :attr:`note` once (the diagnosis reports every fit's note)."""
         if text not in self.note:
             self.note = f"{self.note}; {text}" if self.note else text
+            self.notes.append(Note(text, severity))
 
     @property
     def params(self) -> dict[str, float]:  # type: ignore[override]
@@ -322,7 +327,9 @@ class IsolatorFit(FitResult):
                 f"posterior draws failed (status {', '.join(map(str, bad))}, "
                 f"also with {RETRY_SUBSTEPS[-1]} sub-increments); "
                 + (f"its band uses the {n_ok} that ran" if n_ok else
-                   "its band is the optimum's prediction with the noise alone"))
+                   "its band is the optimum's prediction with the noise alone"),
+                # a band from fewer than half the draws is not the posterior's band
+                "critical" if 2 * n_ok < S else "warning")
         F, sig = F[ok], sig[ok]
         rng = np.random.default_rng(self.seed + 1)
         # at least MIN_BAND_SAMPLES noisy replicates, so that few surviving draws (or the optimum

@@ -17,6 +17,8 @@ import numpy as np
 from rrfrei._json import number as _num
 from rrfrei.gap.design import PropertyModification, design_gap, plot_design_gap, property_modification
 from rrfrei.gap.diagnose import GapReport
+from rrfrei.notes import label as note_label
+from rrfrei.notes import ordered
 
 __all__ = ["write_report", "figures", "verdict_text", "COVERAGE_NOTE", "DesignSummary", "design_summary"]
 
@@ -318,10 +320,10 @@ def write_report(rep: GapReport, out: str | Path, *, title: str | None = None,
         lines += [""]
     if rep.budget_message:
         lines += [f"Time budget: {rep.budget_message}", ""]
-    for n in rep.notes:
+    for n in ordered(rep.notes):  # critical first: the notes that change how the result reads
         listed = n == rep.budget_message or (n.startswith("effect ") and " skipped: " in n)
         if not listed:  # (those are in the lists above)
-            lines += [f"> {n}", ""]
+            lines += [f"> **{note_label(n)}**" if n.severity == "critical" else f"> {note_label(n)}", ""]
     lines += [_summary(rep), ""]
     lines += [COVERAGE_NOTE, ""]
     lines += ["## How far it shrinks", "",

@@ -11,6 +11,7 @@ from pathlib import Path
 from rrfrei.budget import BudgetExceeded, TimeBudget, seconds_arg
 from rrfrei.calibration import (
     PATH_TOLERANCE,
+    BoundWarning,
     ConvergenceWarning,
     advice,
     calibrate,
@@ -20,9 +21,10 @@ from rrfrei.calibration import (
 )
 from rrfrei.calibration.compare import _az
 from rrfrei.calibration.likelihood import DENSE_POINTS, HALF_CYCLE_POINTS, LIKELIHOOD_POINTS
-from rrfrei.calibration.sampler import MAX_STEPS
+from rrfrei.calibration.sampler import CONVERGENCE_RULE, MAX_STEPS
 from rrfrei.io import DISP_UNITS, FORCE_UNITS, bundled_tests, load_test, read_test
 from rrfrei.laws import get
+from rrfrei.notes import Note, as_dicts, label, ordered
 
 EXAMPLE = """\
 Example:
@@ -104,8 +106,7 @@ def add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--walkers", type=_min_int(2), default=None, metavar="N",
                    help="ensemble size (default max(32, 4 x parameters))")
     p.add_argument("--steps", type=_min_int(2), default=None, metavar="N",
-                   help="MCMC steps (default: until the convergence rule holds: bulk and tail ESS "
-                        ">= 400, R-hat < 1.04, >= 10 stable autocorrelation times)")
+                   help=f"MCMC steps (default: until the convergence rule holds: {CONVERGENCE_RULE})")
     p.add_argument("--priors", default=None, metavar="TOML",
                    help="prior overrides ([priors.NAME] kind, a, b)")
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
@@ -219,6 +220,7 @@ def run(args: argparse.Namespace) -> int:
     budget = TimeBudget(args.time_budget, what="calibrate", option="--time-budget")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
+        warnings.simplefilter("always", BoundWarning)
         try:
             cal = calibrate(test, spec, noise=args.noise, seed=args.seed, walkers=args.walkers,
                             steps=args.steps, priors=args.priors, checkpoint=checkpoint,
@@ -230,22 +232,28 @@ def run(args: argparse.Namespace) -> int:
         except BudgetExceeded as exc:
             print(f"rrfrei {exc}", file=sys.stderr)  # "rrfrei calibrate: time budget of ..."
             return 2
+    notes: list[Note] = []  # printed on stderr, critical first, once the fit is judged
     for w in caught:
-        if not issubclass(w.category, ConvergenceWarning) and "time budget" not in str(w.message):
+        if issubclass(w.category, BoundWarning):
+            notes.append(Note(str(w.message), "warning"))
+        elif not issubclass(w.category, ConvergenceWarning) and "time budget" not in str(w.message):
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     d = cal.diagnostics
     if cal.stopped_by == "time_budget":
         where = f"the same command (checkpoint {checkpoint})" if checkpoint is not None else (
             "with --checkpoint H5")
         state = "converged" if cal.converged else "NOT converged"
-        print(f"rrfrei calibrate: warning: time budget of {budget.seconds:.0f} s reached after "
-              f"{d['seconds']:.0f} s: kept {d['steps']} steps x {d['walkers']} walkers ({state}; "
-              f"{run_stats(d)}); run {where} again to continue, or raise --time-budget "
-              "(none: no limit)", file=sys.stderr)
+        notes.append(Note(
+            f"time budget of {budget.seconds:.0f} s reached after {d['seconds']:.0f} s: kept "
+            f"{d['steps']} steps x {d['walkers']} walkers ({state}; {run_stats(d)}); run {where} "
+            "again to continue, or raise --time-budget (none: no limit)",
+            "warning" if cal.converged else "critical"))
     elif not cal.converged:
-        print(f"rrfrei calibrate: warning: NOT converged: {advice(d, cli=True)}", file=sys.stderr)
+        notes.append(Note(f"NOT converged: {advice(d, cli=True)}", "critical"))
     pred = predict(cal, test, seed=args.seed)
     held = [(path, h, predict(cal, h, seed=args.seed)) for path, h in zip(args.holdout, holdouts)]
+    notes += fit_notes(pred, "calibration test") + [
+        n for _, h, hp in held for n in fit_notes(hp, "held-out test")]
     # the figures (pure matplotlib, ~2 s) are drawn by a forked process on the other core while
     # this one writes the posterior and the tables and computes LOO
     with _in_parallel(_write_figures, cal, pred, held, out, args.seed):
@@ -259,7 +267,8 @@ def run(args: argparse.Namespace) -> int:
             loo = az.loo(cal.idata, var_name="force")
         hold = {}
         for path, h, hp in held:
-            hold[path] = {"nrmse": hp.nrmse, "coverage": hp.coverage}
+            hold[path] = {"nrmse": hp.nrmse, "coverage": hp.coverage,
+                          "systematic": hp.adequacy.systematic, "adequacy": hp.adequacy.level}
             hp.cycles.assign(test=h.name).to_csv(out / f"holdout_{h.name}_cycles.csv", index=False)
     s = cal.summary
     result = {
@@ -273,27 +282,50 @@ def run(args: argparse.Namespace) -> int:
         "coverage": pred.coverage,
         "converged": bool(cal.converged),
         "holdout": hold,
+        "adequacy": pred.adequacy.as_dict(),
+        "at_bounds": d.get("at_bounds", []),
+        "notes": as_dicts(notes),
     }
     (out / "result.json").write_text(json.dumps(result, indent=2))
     run_info = {  # how the run went (result.json and --json keep their documented keys)
         "stopped_by": cal.stopped_by, "converged": bool(cal.converged), "steps": int(d["steps"]),
         "walkers": int(d["walkers"]), "max_steps": int(d["max_steps"]), "time_budget_s": d["time_budget"],
         "seconds": float(d["seconds"]), "tau_max": max(d["tau"].values()), "rhat_max": float(d["rhat_max"]),
-        "ess_min": float(d["ess_min"]), "likelihood_points": int(d["likelihood_points"]),
+        "ess_min": float(d["ess_min"]), "ess_tail_min": float(d.get("ess_tail_min", float("nan"))),
+        "rule": CONVERGENCE_RULE, "at_bounds": d.get("at_bounds", []),
+        "likelihood_points": int(d["likelihood_points"]),
         "points": int(d["points"]), "stored_draws": int(d["stored_draws"]),
         "sampling_coordinates": d.get("sampling_coordinates", "law parameters"),
         "path": d.get("path"),
         "checkpoint": None if checkpoint is None else str(checkpoint),
     }
     (out / "run.json").write_text(json.dumps(run_info, indent=2))
+    for n in ordered(notes):
+        print(f"rrfrei calibrate: {label(n)}", file=sys.stderr)
     if args.json:
         print(json.dumps(result))
     else:
         print(s.to_string(float_format=lambda x: f"{x:.4g}"))
         print(run_line(d))
-        print(f"NRMSE {100 * pred.nrmse:.2f} %, coverage {100 * pred.coverage:.1f} %, "
-              f"converged: {cal.converged}; wrote {out}")
+        print(f"fit: {pred.adequacy.sentence}; converged: {cal.converged}; wrote {out}")
     return 0
+
+
+def fit_notes(pred, what: str) -> list[Note]:
+    """The notes a prediction earns: its adequacy when not adequate (critical when inadequate),
+    and posterior draws that failed along the test (critical when more than half did)."""
+    out = []
+    a = pred.adequacy
+    if a is not None and a.level != "adequate":
+        out.append(Note(f"{pred.law} on {what} {pred.test.name!r}: {a.sentence}",
+                        "critical" if a.level == "inadequate" else "warning"))
+    total = pred.n_draws + pred.failed_draws
+    if pred.failed_draws:
+        out.append(Note(f"{pred.failed_draws} of {total} posterior draws of {pred.law} failed on "
+                        f"{what} {pred.test.name!r}: its band comes from {pred.n_draws} draw"
+                        f"{'s' if pred.n_draws != 1 else ''}",
+                        "critical" if 2 * pred.n_draws < total else "warning"))
+    return out
 
 
 def _write_figures(cal, pred, held, out: Path, seed: int) -> None:

@@ -12,9 +12,11 @@ from rrfrei.app.commands.calibrate import add_column_args, load
 from rrfrei.budget import BudgetExceeded, TimeBudget, seconds_arg
 from rrfrei.errors import NUMERICAL_ERRORS
 from rrfrei.gap import diagnose_gap
+from rrfrei.gap.catalogue import catalogue
 from rrfrei.gap.report import design_summary, write_report
 from rrfrei.io import ShearTest
 from rrfrei.laws import get as get_law
+from rrfrei.notes import label, ordered
 from structures.consequences import building_consequences, plot_consequences
 
 EXAMPLE = """\
@@ -56,7 +58,7 @@ def register(sub) -> None:
         "gap", help="diagnose the sim-to-real gap of a calibrated law (which unmodelled effect)",
         description=(
             "Calibrate LAW on TEST, find where its residuals exceed the noise, refit the law with "
-            "each catalogue effect (degradation, mullins, rollover, rate, asymmetry, slip), decide "
+            f"each catalogue effect ({', '.join(catalogue())}), decide "
             "on block tests over half-cycles (calibration and held-out) and a block bootstrap of the "
             "held-out systematic gap, give a verdict (an effect, none, unexplained, incomplete) with "
             "its evidence, and write a Markdown report with figures to DIR."),
@@ -65,7 +67,7 @@ def register(sub) -> None:
     p.add_argument("--law", default="bouc_wen", help="base law (default: bouc_wen)")
     p.add_argument("--holdout", nargs="*", default=[], metavar="CSV", help="held-out tests")
     p.add_argument("--effects", nargs="*", default=None, metavar="EFFECT",
-                   help="effects to try (default: every catalogue effect)")
+                   help=f"effects to try (default: every catalogue effect: {', '.join(catalogue())})")
     p.add_argument("--carry", action="store_true",
                    help="the tests are runs of ONE specimen in the order given (TEST, then each held-out "
                         "test): each held-out test is simulated after the ones before it, so scragging, "
@@ -146,10 +148,9 @@ def run(args) -> int:
     except BudgetExceeded as exc:
         print(str(exc), file=sys.stderr)
         return 1
-    for e, why in rep.skipped.items():
-        print(f"rrfrei gap: effect {e} skipped: {why}", file=sys.stderr)
-    if rep.budget_message:
-        print(rep.budget_message, file=sys.stderr)
+    for n in ordered(rep.notes):  # critical first; routine notes stay in the report
+        if n.severity != "info":
+            print(f"rrfrei gap: {label(n)}", file=sys.stderr)
     design = design_summary(rep)
     building = _building(rep, design, args.building_records, Path(args.out))
     md = write_report(rep, args.out, design=design, building=building)
