@@ -132,7 +132,8 @@ def test_cli_calibrate_and_compare_print_the_documented_json(tmp_path, capsys):
     res = json.loads(out.strip().splitlines()[-1])
     assert set(res) == {"law", "map", "mean", "ci95", "sigma", "elpd_loo", "nrmse", "coverage", "converged",
                         "holdout", "adequacy", "at_bounds", "notes"}
-    assert set(res["holdout"]["protocol2"]) == {"nrmse", "coverage", "systematic", "adequacy"}
+    assert set(res["holdout"]["protocol2"]) == {"nrmse", "coverage", "systematic", "adequacy",
+                                                  "extrapolation"}
     assert set(res["adequacy"]) == {"nrmse", "systematic", "coverage", "adequacy", "reading"}
     for f in ("posterior.nc", "summary.csv", "pair.png", "loop.png", "energy_per_cycle.png",
               "cumulative_energy.png", "holdout.png"):

@@ -268,7 +268,8 @@ def run(args: argparse.Namespace) -> int:
         hold = {}
         for path, h, hp in held:
             hold[path] = {"nrmse": hp.nrmse, "coverage": hp.coverage,
-                          "systematic": hp.adequacy.systematic, "adequacy": hp.adequacy.level}
+                          "systematic": hp.adequacy.systematic, "adequacy": hp.adequacy.level,
+                          "extrapolation": [e.as_dict() for e in hp.extrapolation]}
             hp.cycles.assign(test=h.name).to_csv(out / f"holdout_{h.name}_cycles.csv", index=False)
     s = cal.summary
     result = {
