@@ -140,7 +140,7 @@ class SyntheticBuilding:
             "viscous_power": {"c_v": s * self.qd / 0.3**0.4, "a": 0.4},
             "softening": {"d_s": 0.004 / max(s, 1e-12)},
             "stiffening": {"k_h": s * self.alpha * self.k_init, "d_h": 0.03},
-            "degradation": {"E_0": self.qd * 0.05 / max(s, 1e-12)},
+            "degradation": {"E_0": self.qd * 2.0 / max(s, 1e-12)},
         }[self.effect]
         return {**base, **self.effect_kw}
 
