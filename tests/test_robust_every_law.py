@@ -171,3 +171,35 @@ def test_elastomeric_x_robust_step_is_the_element_step_and_its_bracket_finds_the
     ke, k0 = ex.stiffness(p)
     z, status = bw.solve_robust(zc, du * k0 / p[0], 2.0, ex.GAMMA_SIGN, ex.BETA_CONST)
     assert status == 0 and abs(z - s1[1]) <= 1e-7 * max(1.0, abs(du * k0 / p[0]))
+
+
+@pytest.mark.parametrize("effect, extra", [("degradation", {"deg_rate": 1e-3}),
+                                           ("slip", {"slip_force": 1e6})])
+def test_a_building_on_an_augmented_law_completes_where_opensees_iteration_fails(effect, extra):
+    """Loma Prieta on eta = 0.3 (the building of tests/test_robust_solve.py) with an effect (a
+    slight fade; a series slider that holds, whose solve passes the robust status through):
+    the default fails even in 64 substeps; the robust run completes, says where it deviated,
+    and its energy balances."""
+    from dataclasses import replace
+
+    import ground_motions
+    import structures
+    from structures import Isolator
+
+    b = structures.load_building("three_story")
+    law = f"bouc_wen+{effect}"
+    p = dict(k_init=260.0, qd=0.3, alpha1=0.33, alpha2=0.0, mu=2.0, eta=0.3, beta=0.5,
+             gamma=0.5, **{**_neutral_of(effect), **extra})
+    b = replace(b, isolator=Isolator(law, p, b.isolator.count, b.isolator.length_scale))
+    rec = ground_motions.load("lomaprieta")
+    with pytest.raises(structures.ConvergenceError, match="local_solver='robust'"):
+        structures.time_history(b, rec)
+    with pytest.warns(LocalSolverDeviation):
+        r = structures.time_history(b, rec, local_solver="robust")
+    assert r.robust_steps.size >= 1
+    assert np.all(np.isfinite(r.isolator_disp)) and r.energy_error < 1e-6
+
+
+def _neutral_of(effect):
+    e = EFFECTS[effect]
+    return {ps.name: v for ps, v in zip(e.params, e.neutral)}
