@@ -59,6 +59,11 @@ ACCEPTED = {
 isolation layer is the system effect ``isolation_damping`` (a dashpot) or the isolator effect
 ``rate``; the others have one counterpart each."""
 
+COLUMNS = ("effect", "strength", "seed", "noise", "law", "verdict", "named", "top1", "false_alarm",
+           "holdout_nrmse_before", "holdout_nrmse_after", "shrink", "gap_shrink", "gap_shrink_lo",
+           "gap_shrink_hi", "peak_disp_cal", "peak_disp_holdout", "seconds", "error")
+"""Columns of a case row (:func:`run_case`; ``error`` only for a case that failed)."""
+
 NOT_NAMED = frozenset({"none", "unexplained", "incomplete", ""})
 """Verdicts that name no effect."""
 
@@ -122,7 +127,7 @@ def run_case(effect: str, seed: int, *, strength: float | None = None,
         "gap_shrink_hi": float(ci[1]),
         "peak_disp_cal": float(max(np.max(np.abs(r.isolator_disp)) for r in runs[:-1])),
         "peak_disp_holdout": float(np.max(np.abs(runs[-1].isolator_disp))),
-        "seconds": time.perf_counter() - t0,
+        "seconds": time.perf_counter() - t0, "error": "",
     }
 
 
@@ -143,10 +148,18 @@ def run_validation(forms: Sequence[str] = tuple(FORMS), seeds: Sequence[int] = (
             row = {"effect": f, "seed": s, "verdict": "failed", "named": False,
                    "top1": False if f != "none" else math.nan,
                    "false_alarm": math.nan, "error": str(exc)[:300]}
+        row = {c: row.get(c, math.nan) for c in COLUMNS}  # one schema, failed cases included
         rows.append(row)
         if out is not None:
-            pd.DataFrame([row]).to_csv(out, mode="a", header=not Path(out).exists(), index=False)
+            pd.DataFrame([row], columns=list(COLUMNS)).to_csv(out, mode="a", header=not Path(out).exists(),
+                                                              index=False)
     return pd.DataFrame(rows)
+
+
+def _flag(col: pd.Series) -> pd.Series:
+    """True where a row's flag is true (bools, or their text read back from the CSV); NaN
+    (not applicable, or a failed case) is False."""
+    return col.astype(str).str.lower().eq("true")
 
 
 def summarise(df: pd.DataFrame) -> dict:
@@ -154,13 +167,14 @@ def summarise(df: pd.DataFrame) -> dict:
     where an accepted effect was named) and the verdicts by form."""
     eff = df[df["effect"] != "none"]
     ctl = df[df["effect"] == "none"]
-    right = eff[eff["top1"].astype(bool)] if len(eff) else eff
+    right = eff[_flag(eff["top1"])] if len(eff) else eff
     out = {
         "cases": int(len(df)),
-        "top1": float(eff["top1"].astype(bool).mean()) if len(eff) else math.nan,
-        "top1_n": f"{int(eff['top1'].astype(bool).sum())}/{len(eff)}",
-        "false_alarms": float(ctl["false_alarm"].astype(bool).mean()) if len(ctl) else math.nan,
-        "false_alarms_n": f"{int(ctl['false_alarm'].astype(bool).sum())}/{len(ctl)}",
+        "failed": int((df["verdict"].astype(str) == "failed").sum()),
+        "top1": float(_flag(eff["top1"]).mean()) if len(eff) else math.nan,
+        "top1_n": f"{int(_flag(eff['top1']).sum())}/{len(eff)}",
+        "false_alarms": float(_flag(ctl["false_alarm"]).mean()) if len(ctl) else math.nan,
+        "false_alarms_n": f"{int(_flag(ctl['false_alarm']).sum())}/{len(ctl)}",
         "shrink_median": float(right["shrink"].median()) if len(right) else math.nan,
         "shrink_min": float(right["shrink"].min()) if len(right) else math.nan,
         "shrink_max": float(right["shrink"].max()) if len(right) else math.nan,

@@ -40,6 +40,25 @@ def test_every_form_has_its_accepted_answers_and_the_control_none():
         run_case("creep", 0)
 
 
+def test_a_failed_case_is_recorded_in_the_same_columns_and_is_neither_right_nor_an_alarm(
+        tmp_path, monkeypatch):
+    import structures.shake_table_validation as v
+
+    def fails(effect, seed, **kw):
+        raise ValueError("time budget reached")
+
+    monkeypatch.setattr(v, "run_case", fails)
+    out = tmp_path / "cases.csv"
+    df = run_validation(["none", "stiffening"], [0], out=out, progress=False)
+    back = pd.read_csv(out)
+    assert list(back.columns) == list(v.COLUMNS) and list(back["verdict"]) == ["failed", "failed"]
+    for table in (df, back):
+        s = summarise(table)
+        assert s["failed"] == 2 and s["top1_n"] == "0/1" and s["false_alarms_n"] == "0/1"
+    # a rerun resumes: nothing left to do
+    assert len(run_validation(["none", "stiffening"], [0], out=out, progress=False)) == 2
+
+
 @pytest.mark.slow
 def test_validation_table_every_case_finishes_and_a_named_effect_never_worsens_the_building(tmp_path):
     df = run_validation(tuple(FORMS), (0, 1, 2), out=tmp_path / "cases.csv", progress=False,
