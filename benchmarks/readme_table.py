@@ -1,11 +1,12 @@
-"""Print README's speed table (and the times its prose states) from ``benchmarks/headline.json``.
+"""The summary table of ``benchmarks/RESULTS.md`` (the headline speed figures, one row per
+benchmark) and the fresh-clone times, from ``benchmarks/headline.json``.
 
 Every figure comes from the last full run of a benchmark script (``python benchmarks/run_all.py``
-writes RESULTS.md and headline.json together), so README quotes exactly what RESULTS.md shows.
-Paste the output over README's "Speed" section.  A benchmark not yet run prints as
-``(not measured)``.
+writes RESULTS.md's sections and headline.json together), so the summary quotes exactly what the
+sections show.  A benchmark not yet run prints as ``(not measured)``.
 
-Run: ``python benchmarks/readme_table.py``.
+Run: ``python benchmarks/readme_table.py`` (prints), ``python benchmarks/readme_table.py --write``
+(replaces the ``summary`` block at the top of RESULTS.md).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _results import HEADLINE  # noqa: E402
+from _results import HEADLINE, RESULTS  # noqa: E402
 
 MISSING = "(not measured)"
 
@@ -110,20 +111,21 @@ def table(h: dict) -> str:
     row("whole `rrfrei shake-table` command, four BNCS runs", "", "", "", st_text + " on 2 cores",
         "<= 3 min warm")
     head = [
-        "## Speed (ratios against the peer, measured in the same run)",
+        "## Summary (ratios against the peer, measured in the same run)",
         "",
-        "Measured on this project's 2-core machine by `benchmarks/` (`benchmarks/RESULTS.md` has the "
-        "parameters, the agreement with the peer asserted in the same run, and cold-start times). "
-        "**Ratio per core** is rrfrei on one thread against the peer on one thread (warm-up excluded "
-        "for both, median of the same interleaved repeats, the peer's model building and teardown "
-        "outside its timer); **multi-core** is rrfrei's own throughput on every core, never divided "
-        "by a single-threaded peer.",
+        "The headline figure of each section below, on this project's 2-core machine (the sections "
+        "have the parameters, the agreement with the peer asserted in the same run, cold-start "
+        "times and the date of each run; `python benchmarks/readme_table.py --write` rebuilds this "
+        "table from `headline.json`). **Ratio per core** is rrfrei on one thread against the peer "
+        "on one thread (warm-up excluded for both, median of the same interleaved repeats, the "
+        "peer's model building and teardown outside its timer); **multi-core** is rrfrei's own "
+        "throughput on every core, never divided by a single-threaded peer.",
         "",
         "| what | rrfrei, 1 thread | peer, 1 thread (same run) | ratio per core | multi-core | target |",
         "|---|---|---|---|---|---|",
     ]
-    tail = ["", "Full tables, parameters and cold-start times: `benchmarks/RESULTS.md`; regenerate with "
-            "`python benchmarks/run_all.py` (one script: `python benchmarks/bench_<name>.py`)."]
+    tail = ["", "Regenerate every section with `python benchmarks/run_all.py` (one script: "
+            "`python benchmarks/bench_<name>.py`)."]
     return "\n".join(head + rows + tail)
 
 
@@ -142,8 +144,26 @@ def claims(h: dict) -> str:
     ])
 
 
+def write_summary(markdown: str, path: Path = RESULTS) -> None:
+    """Replace the ``summary`` block of RESULTS.md (inserted before the first section if absent)."""
+    block = f"<!-- summary:start -->\n{markdown.strip()}\n<!-- summary:end -->"
+    text = path.read_text()
+    start, end = text.find("<!-- summary:start -->"), text.find("<!-- summary:end -->")
+    if start >= 0 and end > start:
+        text = text[:start] + block + text[end + len("<!-- summary:end -->"):]
+    else:
+        first = text.find("<!-- ")
+        first = len(text) if first < 0 else first
+        text = text[:first] + block + "\n\n" + text[first:]
+    path.write_text(text)
+
+
 def main() -> None:
     h = json.loads(HEADLINE.read_text()) if HEADLINE.exists() else {}
+    if "--write" in sys.argv[1:]:
+        write_summary(table(h))
+        print(f"wrote the summary block of {RESULTS}")
+        return
     print(table(h))
     print()
     print(claims(h))

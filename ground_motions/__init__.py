@@ -15,7 +15,7 @@ recurrence is a Numba kernel over arrays (``spectra._nigam_jennings``).
   :func:`design_value` (17.6.3.4: average of 7 or more pairs, else maximum); :func:`plot_rotd`.
 """
 
-import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
+import rrfrei._jit_cache  # noqa: F401  (first: the kernel cache locator, before any @njit)
 
 from .asce7 import ScaledSuite, design_value, mcer_target, scale_pairs_asce7
 from .catalogue import available, available_pairs, load, load_pair

@@ -14,14 +14,16 @@ Units: kN, m, s, tonnes throughout.
 
 The public names below are imported lazily (the table ``_LAZY``, all of them core modules), so
 ``import rrfrei`` stays cheap: every package imports ``rrfrei._jit_cache`` first, which runs this
-file, and must not pay for the calibration stack (arviz, emcee) it may not use.
+file, and must not pay for the calibration stack (arviz, emcee) it may not use.  Importing only
+defines things: ``rrfrei._jit_cache`` registers the kernel cache locator with Numba, and writes
+nothing and sets no environment variable (the cache folder is made at the first compile).
 """
 
 from __future__ import annotations
 
 import importlib
 
-from rrfrei import _jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
+from rrfrei import _jit_cache  # noqa: F401  (first: the kernel cache locator, before any @njit)
 
 __version__ = "0.1.0"
 

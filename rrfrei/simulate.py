@@ -205,7 +205,7 @@ def as_plan_history(values, name: str = "disp", finite: bool = True) -> np.ndarr
         raise ValueError(f"{name} must be an (n, 2) array of numbers, got {type(values).__name__}") from None
     if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 1:
         raise ValueError(f"{name} must be an (n, 2) array (x, y per sample) [m], got shape {arr.shape}")
-    if finite and not np.isfinite(arr).all():  # (argwhere only then: 10x the test's time)
+    if finite and not np.isfinite(arr).all():  # (argwhere only then: far slower than the test)
         i, a = np.argwhere(~np.isfinite(arr))[0]
         raise ValueError(f"{name} is not finite at sample {i}, component {'xy'[a]} (value {arr[i, a]})")
     return np.ascontiguousarray(arr)
@@ -226,7 +226,7 @@ def _simulate_plan(law, params, disp, *, time, substeps, return_tangent, local_s
     u = as_plan_history(disp, "disp", finite=False)  # the driver checks (plan.NONFINITE_DISP)
     _check_substeps(substeps)
     # without time, a 1-element stand-in: the plan drivers read time only with use_time (an
-    # (n,) array of zeros cost 15-20 us after another program had run, 1 % of the benchmark)
+    # (n,) array of zeros is a measurable part of a short history's cost)
     t, use_time = _time_of(time, u.shape[0]) if time is not None else (np.zeros(1), False)
     force = np.empty_like(u)
     tangent = np.empty((u.shape[0], 2, 2))

@@ -10,7 +10,7 @@ Layer: on the ``rrfrei`` core (errors, budgets, the gap engine), beside ``struct
 ``rrfrei.app`` (``tests/test_layers.py``).
 """
 
-import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
+import rrfrei._jit_cache  # noqa: F401  (first: the kernel cache locator, before any @njit)
 
 from .fit import FitResult, fit, objective
 from .io import Test, read_test

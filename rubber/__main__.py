@@ -10,6 +10,7 @@ from pathlib import Path
 
 from rrfrei.budget import seconds_arg
 from rrfrei.errors import NUMERICAL_ERRORS, is_numerical
+from rrfrei.extrapolation import by_source
 
 DEFAULT_FIT_BUDGET = 1200.0
 """Default wall-clock budget of ``python -m rubber fit`` [s] (a 12-test fit takes 85-99 s)."""
@@ -125,8 +126,10 @@ def _run(a) -> int:
         # inside fit() never raises: its failures are NaN rel_sigma with reasons in "uncertainty_notes"
         doc = {"params": r.params.as_dict(), "f": r.f, "f_total": r.f_total}
         rel = {n: (None if v != v else v) for n, v in r.rel_sigma.items()}  # NaN -> null (strict JSON)
+        ext = _extrapolation(r.params, tests, a.tests)  # fitted tests near a fitted chain's lock
         (out / "params.json").write_text(json.dumps({
-            **doc, "combinations": r.combinations, "ref_rate": r.ref_rate,
+            **doc, "stretch_range": list(r.stretch_range), "combinations": r.combinations,
+            "ref_rate": r.ref_rate,
             "flow_parameterisation": list(r.flow_thresholds) or "C1", "rel_sigma": rel,
             "uncertainty_notes": list(r.uncertainty_notes), "evaluations": r.evaluations,
             "stopped_by": r.stopped_by}, indent=2))
@@ -137,12 +140,19 @@ def _run(a) -> int:
                   "the box does not fit these data (the default is the study's polyurethane box, "
                   "C10 >= 1 MPa): try --bounds auto", file=sys.stderr)
         _figure(r.params, tests, out / "fit.png")
-        print(json.dumps(doc) if a.json else r.summary())
+        print(json.dumps({**doc, "stretch_range": list(r.stretch_range), "extrapolation": ext}) if a.json
+              else r.summary())
     elif a.cmd == "predict":
         p = _read_params(a.params)
+        fitted = _read_stretch_range(a.params)
         tests = [read_test(x) for x in a.tests]
         f = {t.name: float(v) for t, v in zip(tests, objective(p, tests, rtol=1e-8))}
-        print(json.dumps({"f": f}) if a.json else "\n".join(f"{k}: f = {v:.4e}" for k, v in f.items()))
+        ext = _extrapolation(p, tests, a.tests, fitted)
+        if fitted is None:
+            print(f"warning: {a.params} has no stretch_range (a fit by an older version, or written by "
+                  "hand): only the chains' locking stretches are checked", file=sys.stderr)
+        print(json.dumps({"f": f, "extrapolation": ext}) if a.json
+              else "\n".join(f"{k}: f = {v:.4e}" for k, v in f.items()))
     elif a.cmd == "cases":
         from .study import cases
 
@@ -162,6 +172,30 @@ def _run(a) -> int:
     elif a.cmd == "gap":
         _gap(a)
     return 0
+
+
+def _read_stretch_range(path: str) -> tuple[float, float] | None:
+    """The fitted stretch range ``[min, max]`` of a ``params.json`` written by ``fit`` (None if absent)."""
+    d = json.loads(Path(path).read_text())
+    r = d.get("stretch_range") if isinstance(d, dict) else None
+    if r is None:
+        return None
+    try:
+        lo, hi = (float(x) for x in r)
+    except (TypeError, ValueError):
+        raise UserError(f"{path}: stretch_range = {r!r}: expected [min, max]") from None
+    return lo, hi
+
+
+def _extrapolation(params, tests, files, fitted=None) -> dict:
+    """Warn on stderr for each test (named by its file) beyond the fitted stretch range or within
+    10 % of a chain's locking stretch; return the records per file for ``--json``."""
+    from .extrapolation import check
+
+    found = check(params, tests, sources=list(files), fitted_range=fitted)
+    for item in found:
+        print(f"warning: {item.message}", file=sys.stderr)
+    return {str(x): by_source(found).get(str(x), []) for x in files}
 
 
 def _read_bounds(bounds):

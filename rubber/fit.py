@@ -35,6 +35,7 @@ from rrfrei.budget import TimeBudget
 from rrfrei.budget import progress as _progress
 
 from . import integrate as _k
+from .extrapolation import check, stretch_range
 from .io import Test
 from .prf import PARAM_NAMES, BBChain, PRFParams, simulate
 from .study import BOX
@@ -194,6 +195,11 @@ class FitResult:
     stopped_by: str | None = None
     """``"time_budget"`` when the wall-clock budget ended the search early (the best point found
     so far is returned and polished as far as the budget allowed); None for a complete fit."""
+    stretch_range: tuple[float, float] | None = None
+    """(min, max) stretch of the fitted tests: the range the fit is evidence for."""
+    extrapolation: tuple = ()
+    """Fitted tests within 10 % of a fitted chain's locking stretch
+    (:func:`rubber.extrapolation.check`: :class:`rrfrei.extrapolation.Extrapolation` records)."""
 
     def summary(self) -> str:
         lines = [f"f_total = {self.f_total:.4e} ({self.evaluations} evaluations)"]
@@ -203,6 +209,9 @@ class FitResult:
         for n, v in self.combinations.items():
             lines.append(f"  {n:14s} = {v:.6g}")
         lines += [f"  note: {x}" for x in self.uncertainty_notes]
+        if self.stretch_range is not None:
+            lines.append(f"  fitted stretch range {self.stretch_range[0]:.4g} to {self.stretch_range[1]:.4g}")
+        lines += [f"  warning: {x.message}" for x in self.extrapolation]
         return "\n".join(lines)
 
 
@@ -572,7 +581,8 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
     return FitResult(p, fd, float(np.sum(fs)), nev, free, fim, corr, rs,
                      combinations(p, rate=space.ref_rate, tau=tau), [(float(r[1]), int(r[2])) for r in runs],
                      ref_rate=space.ref_rate, flow_thresholds=tuple("Dth_" + c for c in space.threshold),
-                     uncertainty_notes=notes, stopped_by=stopped)
+                     uncertainty_notes=notes, stopped_by=stopped, stretch_range=stretch_range(tests),
+                     extrapolation=tuple(check(p, tests)))
 
 
 def _safe_fisher(p: PRFParams, tests: list[Test], free: tuple[str, ...], tau: str, bounds: dict):

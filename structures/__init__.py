@@ -19,7 +19,7 @@ Layer: on top of ``ground_motions`` and the ``rrfrei`` core (laws, simulation, c
 ('five_story', 'three_story')
 """
 
-import rrfrei._jit_cache  # noqa: F401  (first: Numba cache keyed on kernel sources)
+import rrfrei._jit_cache  # noqa: F401  (first: the kernel cache locator, before any @njit)
 from structures.building import Isolator, ShearBuilding, available_buildings, load_building
 from structures.history import ConvergenceError, Response, time_history, time_history_batch
 from structures.identify import SuperstructureIdentification, identify_superstructure  # noqa: F401

@@ -16,8 +16,9 @@ Two layouts are read by :func:`read_run`:
    relative to the table [m]), ``u`` (table acceleration [m/s^2]) and optionally ``du`` (table
    displacement [m]), whitespace-separated values (one per line, or all on one line as in some
    BNCS ``d`` files), ``.txt`` or ``.txt.gz``; the sampling rate and the
-   level masses come from a TOML sidecar (``<folder>.toml`` or ``run.toml`` inside it) or the
-   arguments ``rate_hz=`` and ``masses=`` / ``weights=``.
+   level masses come from a TOML sidecar (``run.toml`` inside the folder or ``<folder>.toml``
+   next to it) or the arguments ``rate_hz=`` and ``masses=`` / ``weights=``; ``a1=`` (sidecar
+   ``[levels] a1``) says whether ``a1`` is the roof (default) or the base slab.
 2. **CSV layout**: ``time_s``, ``table_accel_<unit>``, optional ``table_disp_<unit>``, and per
    level ``<LEVEL>_accel_abs_<unit>`` and ``<LEVEL>_disp_rel_<unit>`` (accelerations ``mps2``,
    ``cmps2``, ``g``; displacements ``m``, ``cm``, ``mm``), plain or gzip-compressed, with a TOML
@@ -32,13 +33,22 @@ Two layouts are read by :func:`read_run`:
        accel = "mps2"
        disp = "m"
 
+Every list of levels (names, masses, weights) runs base slab first unless ``level_order =
+"roof-first"`` (``[levels] level_order`` or the argument ``level_order=``).  **The sidecar
+format, its keys and units, an example for a raw folder and what the reader checks:
+``docs/shake_table_data.md``** (command line: ``rrfrei shake-table --rate-hz --weights
+--weight-unit --masses --level-order --a1``).
+
 Consistency (:func:`check_consistency`, run by :func:`read_run`): for every level the absolute
 acceleration must equal the second derivative of the relative displacement plus the table
 acceleration, a_i = d''_i + a_g, and the table displacement must satisfy du'' = a_g; both sides
 are low-passed identically (zero-phase Butterworth, 5 Hz by default) since double differentiation
 amplifies noise.  A failing check gives a :class:`ConsistencyWarning` and is kept in
 ``run.consistency``; malformed input (missing file or column, bad value, unknown unit) is a
-``ValueError`` naming the file, column and value.
+``ValueError`` naming the file, column and value.  A missing rate or masses, and channels whose
+failure is that of a wrong sampling rate (one common scale (f/f')^2 between d'' and the
+accelerations), raise :class:`MetadataError`.  :func:`check_level_order` warns
+(:class:`LevelOrderWarning`) when the levels look upside down or the masses reversed.
 
 The isolation system (:func:`isolation_test`): with every level above the isolators in the free
 body, horizontal equilibrium gives the force the isolators apply to the building
@@ -73,12 +83,16 @@ __all__ = [
     "BNCS_WEIGHTS_KN",
     "ConsistencyReport",
     "ConsistencyWarning",
+    "LevelOrderWarning",
+    "MetadataError",
     "ShakeTableRun",
     "available_runs",
     "check_consistency",
+    "check_level_order",
     "isolation_metrics",
     "isolation_test",
     "load_run",
+    "open_run",
     "read_run",
     "write_run",
 ]
@@ -90,6 +104,14 @@ BNCS_WEIGHTS_KN = (2275.1, 674.0, 703.0, 1036.3, 1078.1, 593.3)
 """Level weights [kN] of the BNCS building, bottom-up (base slab incl. its 406.6 kN addition,
 then floors 2-5 and the roof), from the source notebook; the unit kN is inferred (see
 ``structures/data/shake_table_bncs/PROVENANCE.md``)."""
+
+LEVEL_ORDERS = ("base-first", "roof-first")
+"""How a list of levels (masses, weights, names, CSV columns) runs: from the base slab above the
+isolators up (``base-first``, the default) or from the roof down (``roof-first``)."""
+
+A1_LEVELS = ("roof", "base")
+"""Which level the files ``a1``/``d1`` of the folder layout hold (default ``roof``, the BNCS
+convention: ``a1`` the roof, ``aN`` the base slab)."""
 
 ACCEL_UNITS = {"mps2": 1.0, "cmps2": 0.01, "g": G}
 DISP_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -103,6 +125,24 @@ _MIN_FILTER_SAMPLES = 15
 
 class ConsistencyWarning(UserWarning):
     """A run's channels disagree (acceleration vs. displacement) beyond the tolerance."""
+
+
+class LevelOrderWarning(ConsistencyWarning):
+    """The levels of a run look upside down, or its masses look listed in the opposite order."""
+
+
+class MetadataError(ValueError):
+    """A run's sampling rate or level masses are missing, or the channels contradict the rate.
+
+    ``fact`` says what is wrong (with the folder or file); ``what`` names the datum, ``"rate_hz"``
+    or ``"masses"`` (``"time"`` for a CSV whose time column the channels contradict);
+    ``sidecar`` is the TOML file where it can be stated.  The message ends with how to give it
+    from Python; the command line (``rrfrei shake-table``) words that part for its options.
+    """
+
+    def __init__(self, fact: str, hint: str, *, what: str, sidecar: str):
+        super().__init__(f"{fact}: {hint}")
+        self.fact, self.what, self.sidecar = fact, what, sidecar
 
 
 # ---------------------------------------------------------------------------------- filtering
@@ -142,16 +182,51 @@ class ConsistencyReport:
     ``table`` has one row per check: ``check`` (``"a_i = d_i'' + a_g"`` per level or
     ``"du'' = a_g"``), ``channel``, ``correlation``, ``amplitude_ratio`` (RMS of the derived
     over the measured, after the low-pass), ``rel_error`` (RMS of the difference over the RMS of
-    the measured) and ``passed`` (``rel_error <= tol``).
+    the measured), ``passed`` (``rel_error <= tol``), and the sampling-rate evidence: ``scale``,
+    the least-squares factor c in  measured ~ c x derived  of the accelerations *relative to the
+    table* (a_i - a_g against d_i''; a_g against du''), and ``scale_correlation``, their
+    correlation.  A second derivative taken at a rate f' instead of the true f is (f'/f)^2 times
+    too large, so a wrong rate shows as a common scale c = (f/f')^2 with a high correlation;
+    :attr:`implied_rate_hz` is f' sqrt(c).
     """
 
     table: pd.DataFrame
     cutoff_hz: float
     tol: float
+    rate_hz: float = math.nan
 
     @property
     def ok(self) -> bool:
         return bool(self.table["passed"].all())
+
+    @property
+    def scale(self) -> float:
+        """Median of the per-check ``scale`` (NaN when no check has signal)."""
+        c = self.table["scale"].to_numpy(dtype=float)
+        c = c[np.isfinite(c) & (c > 0)]
+        return float(np.median(c)) if c.size else math.nan
+
+    @property
+    def scale_correlation(self) -> float:
+        """Smallest ``scale_correlation`` over the checks with signal."""
+        r = self.table["scale_correlation"].to_numpy(dtype=float)
+        r = r[np.isfinite(r)]
+        return float(r.min()) if r.size else math.nan
+
+    @property
+    def implied_rate_hz(self) -> float:
+        """The sampling rate [Hz] at which the displacements' second derivative matches the
+        accelerations: rate_hz x sqrt(scale)."""
+        return self.rate_hz * math.sqrt(self.scale) if self.scale > 0 else math.nan
+
+    def rate_looks_wrong(self, *, rate_tol: float = 0.1, min_correlation: float = 0.9) -> bool:
+        """True when most checks fail and every channel shows one common scale (correlation >=
+        ``min_correlation``) whose implied rate is more than ``rate_tol`` away from the stated one:
+        the signature of a wrong sampling rate (or of displacements in another unit)."""
+        n_fail = int((~self.table["passed"]).sum())
+        if n_fail * 2 <= len(self.table) or not self.scale_correlation >= min_correlation:
+            return False
+        return abs(math.sqrt(self.scale) - 1.0) > rate_tol
 
     @property
     def failures(self) -> list[str]:
@@ -166,7 +241,23 @@ class ConsistencyReport:
         head = (f"consistency after a {self.cutoff_hz:g} Hz low-pass: "
                 f"{int(self.table['passed'].sum())}/{len(self.table)} checks pass "
                 f"(worst relative error {worst:.3g}, tolerance {self.tol:g})")
-        return "\n".join([head, *self.failures])
+        lines = [head, *self.failures]
+        if not self.ok and self.scale_correlation >= 0.9 and abs(math.sqrt(self.scale) - 1.0) > 0.02:
+            lines.append(f"every channel shows one scale (d'' is {1 / self.scale:.3g} x the accelerations, "
+                         f"correlation >= {self.scale_correlation:.4f}): the data match a sampling rate of "
+                         f"about {self.implied_rate_hz:.3g} Hz, not {self.rate_hz:.3g} Hz (or displacements "
+                         "in another unit)")
+        return "\n".join(lines)
+
+
+def _scale(derived: np.ndarray, measured: np.ndarray) -> tuple[float, float]:
+    """(c, correlation) of the least-squares fit measured ~ c x derived."""
+    xx = float(np.dot(derived, derived))
+    yy = float(np.dot(measured, measured))
+    if xx == 0.0 or yy == 0.0:
+        return math.nan, math.nan
+    xy = float(np.dot(derived, measured))
+    return xy / xx, xy / math.sqrt(xx * yy)
 
 
 def _agreement(derived: np.ndarray, measured: np.ndarray) -> tuple[float, float, float]:
@@ -192,20 +283,140 @@ def check_consistency(run: ShakeTableRun, *, cutoff_hz: float = 5.0, tol: float 
         raise ValueError(f"cutoff_hz = {cutoff_hz!r} is invalid: expected 0 < cutoff < {fs / 2:g} Hz "
                          "(the Nyquist frequency of the run)")
     ag = run.table_accel
-    derived = second_derivative(run.disp, run.dt) + ag[:, None]
-    lo_d = lowpass(derived, cutoff_hz, fs)
+    rel_d = lowpass(second_derivative(run.disp, run.dt), cutoff_hz, fs)  # d_i''
+    lo_ag = lowpass(ag, cutoff_hz, fs)
+    lo_d = rel_d + lo_ag[:, None]
     lo_a = lowpass(run.accel, cutoff_hz, fs)
     rows = []
     for i, name in enumerate(run.level_names):
         c, r, e = _agreement(lo_d[:, i], lo_a[:, i])
-        rows.append(("a_i = d_i'' + a_g", name, c, r, e))
+        rows.append(("a_i = d_i'' + a_g", name, c, r, e, *_scale(rel_d[:, i], lo_a[:, i] - lo_ag)))
     if run.table_disp is not None:
-        c, r, e = _agreement(lowpass(second_derivative(run.table_disp, run.dt), cutoff_hz, fs),
-                             lowpass(ag, cutoff_hz, fs))
-        rows.append(("du'' = a_g", "table", c, r, e))
-    df = pd.DataFrame(rows, columns=["check", "channel", "correlation", "amplitude_ratio", "rel_error"])
+        du2 = lowpass(second_derivative(run.table_disp, run.dt), cutoff_hz, fs)
+        c, r, e = _agreement(du2, lo_ag)
+        rows.append(("du'' = a_g", "table", c, r, e, *_scale(du2, lo_ag)))
+    df = pd.DataFrame(rows, columns=["check", "channel", "correlation", "amplitude_ratio", "rel_error",
+                                     "scale", "scale_correlation"])
     df["passed"] = df["rel_error"] <= tol
-    return ConsistencyReport(df, float(cutoff_hz), float(tol))
+    return ConsistencyReport(df, float(cutoff_hz), float(tol), float(fs))
+
+
+# ---------------------------------------------------------------------------------- level order
+UPSIDE_DOWN_RATIO = 0.98
+"""The levels look upside down when the RMS displacement relative to the table AND the RMS
+absolute acceleration of the level read as the roof are below this fraction of the base slab's,
+each profile falling on at least half of its steps."""
+
+MASS_ORDER_GAIN = 1.25
+"""The masses look listed in the opposite order when, with them reversed, every story but the top
+one fits V_j = k_j delta_j + c_j delta_j' better and the summed unexplained variance falls by this
+factor (the top story's shear is one mass times one acceleration: a scale, no evidence)."""
+
+
+def _bandpass(x: np.ndarray, band: tuple[float, float], fs: float) -> np.ndarray:
+    sos = scipy.signal.butter(4, band, btype="band", fs=fs, output="sos")
+    return scipy.signal.sosfiltfilt(sos, x, axis=0)
+
+
+def story_fit_r2(run: ShakeTableRun, masses: np.ndarray | None = None, *,
+                 band_hz: tuple[float, float] = (1.0, 15.0)) -> np.ndarray:
+    """(L-1,) R^2 of each story's least-squares fit V_j = k_j delta_j + c_j delta_j' (both sides
+    band-passed ``band_hz``, zero phase), V_j = -sum_{i>=j} m_i a_i with ``masses`` (default the
+    run's) [t]: how well the records follow a shear building (``structures.identify`` fits the same
+    equation, with uncertainty)."""
+    m = run.masses if masses is None else np.asarray(masses, dtype=float)
+    fs = run.rate_hz
+    band = (band_hz[0], min(band_hz[1], 0.45 * fs))
+    V = -np.cumsum((run.accel * m)[:, ::-1], axis=1)[:, ::-1][:, 1:]
+    Vb = _bandpass(V, band, fs)
+    db = _bandpass(np.diff(run.disp, axis=1), band, fs)
+    vb = derivative(db, run.dt)
+    out = np.full(V.shape[1], math.nan)
+    for j in range(V.shape[1]):
+        X = np.column_stack([db[:, j], vb[:, j]])
+        var = float(np.var(Vb[:, j]))
+        if var > 0 and np.any(X):
+            coef, *_ = np.linalg.lstsq(X, Vb[:, j], rcond=None)
+            out[j] = 1.0 - float(np.var(Vb[:, j] - X @ coef)) / var
+    return out
+
+
+def check_level_order(run: ShakeTableRun) -> list[str]:
+    """Physical checks that the levels are bottom-up and the masses listed in the same order.
+
+    1. **Levels upside down.**  In a base-isolated building the isolation mode carries most of the
+       displacement, and in it the inertia of the superstructure bends every story the same way as
+       the isolators: each level's displacement relative to the table is the isolator's plus the
+       drifts below it, so it grows from the base slab (the isolator displacement, the smallest) to
+       the roof (the largest), and so, in the RMS, does the absolute acceleration.  When both the
+       RMS displacement and the RMS acceleration of the level read as the roof are below
+       :data:`UPSIDE_DOWN_RATIO` of the base slab's (each profile falling on at least half of its
+       steps), the levels are upside down.  (The peak acceleration is not used: higher modes can
+       make it largest at the base slab.)
+    2. **Masses in the opposite order.**  The masses do not show their own order (a heavy base slab
+       is usual, not proof), but the story shears V_j = -sum_{i>=j} m_i a_i do: with the right
+       masses they follow the drifts of a shear building (:func:`story_fit_r2`).  When every story
+       below the top fits better with the masses reversed, the reversed fit holds (R^2 >= 0.8) and
+       the unexplained variance falls by :data:`MASS_ORDER_GAIN`, the masses look listed in the
+       opposite order.  Needs 3 levels or more, asymmetric masses and a rate above 10 Hz.
+
+    Returns one message per failed check (empty: nothing found); :func:`read_run` issues them as
+    :class:`LevelOrderWarning`.
+    """
+    L = run.n_levels
+    if L < 2:
+        return []
+    out = []
+    names = run.level_names
+    d = np.sqrt(np.mean((run.disp - run.disp.mean(axis=0)) ** 2, axis=0))
+    a = np.sqrt(np.mean((run.accel - run.accel.mean(axis=0)) ** 2, axis=0))
+    if np.all(d > 0) and np.all(a > 0):
+        falls = (d[-1] < UPSIDE_DOWN_RATIO * d[0] and a[-1] < UPSIDE_DOWN_RATIO * a[0]
+                 and np.mean(np.diff(d) < 0) >= 0.5 and np.mean(np.diff(a) < 0) >= 0.5)
+        if falls:
+            if run.meta.get("layout") == "folder":
+                fix = ("if a1/d1 hold the base slab in this folder, state it: [levels] a1 = \"base\" in "
+                       "its run.toml (--a1 base on the command line)")
+            else:
+                fix = ("check which column holds which level (the columns named for the base slab seem to "
+                       "hold the roof's record); [levels] names run base slab first unless [levels] "
+                       "level_order = \"roof-first\" (--level-order on the command line)")
+            out.append(
+                f"the levels look upside down: the RMS displacement relative to the table falls from "
+                f"{1e3 * d[0]:.1f} mm at {names[0]!r} (read as the base slab) to {1e3 * d[-1]:.1f} mm at "
+                f"{names[-1]!r} (read as the roof), and the RMS absolute acceleration from {a[0]:.3g} to "
+                f"{a[-1]:.3g} m/s^2; in a base-isolated building both grow from the base slab to the roof. "
+                f"The isolator displacement, isolator force and story shears are wrong until fixed: {fix}")
+            return out
+    m = run.masses
+    if L >= 3 and run.rate_hz > 10.0 and not np.allclose(m, m[::-1], rtol=1e-6) and run.time.size > 200:
+        given = story_fit_r2(run)[:-1]
+        rev = story_fit_r2(run, m[::-1])[:-1]
+        if (np.all(np.isfinite(given)) and np.all(np.isfinite(rev)) and np.all(rev > given)
+                and np.min(rev) >= 0.8 and np.sum(1 - given) >= MASS_ORDER_GAIN * np.sum(1 - rev)):
+            src = run.meta.get("masses_source", "")
+            out.append(
+                "the level masses look listed in the opposite order"
+                + (f" (from {src}, read {run.meta.get('level_order', 'base-first')})" if src else "")
+                + ": the story shears -sum m_i a_i follow the story drifts better with them reversed "
+                f"(R^2 of stories 1-{L - 2}: {np.round(given, 3).tolist()} as read, "
+                f"{np.round(rev, 3).tolist()} reversed, 1-15 Hz); as read, the base slab {names[0]!r} "
+                f"has {m[0]:.4g} t and the roof {names[-1]!r} {m[-1]:.4g} t. List the masses or weights "
+                "base slab first, or state [levels] level_order = \"roof-first\" (--level-order "
+                "roof-first on the command line)")
+    return out
+
+
+def open_run(spec: str | Path, **read: Any) -> ShakeTableRun:
+    """A run from a bundled name (``"ICA50"``, :func:`available_runs`), a folder or a CSV, read by
+    :func:`read_run` with the keyword arguments ``read`` (rate, masses, level order ...)."""
+    s = str(spec)
+    if s in available_runs() and not Path(s).exists():
+        return read_run(_DATA / f"{s}.csv.gz", **read)
+    if not Path(s).exists():
+        raise ValueError(f"run {s!r} is neither a bundled run ({', '.join(available_runs())}) nor an "
+                         "existing folder or CSV file")
+    return read_run(s, **read)
 
 
 # ---------------------------------------------------------------------------------- the run
@@ -389,7 +600,7 @@ def _sidecar_levels(data: Mapping[str, Any], where: str) -> tuple[list[str] | No
     lv = data.get("levels", {})
     if not isinstance(lv, Mapping):
         raise ValueError(f"{where}: [levels] must be a table")
-    known = {"names", "masses", "mass_unit", "weights", "weight_unit", "g"}
+    known = {"names", "masses", "mass_unit", "weights", "weight_unit", "g", "level_order", "a1"}
     extra = sorted(set(lv) - known)
     if extra:
         raise ValueError(f"{where}: unknown [levels] key(s) {', '.join(extra)}; "
@@ -436,7 +647,31 @@ def _numbers(values: Any, what: str) -> np.ndarray:
     return a
 
 
-def _level_masses(masses, weights, weight_unit: str, side_masses, n_levels: int, where: str) -> np.ndarray:
+def _option(value: Any, key: str, allowed: tuple[str, ...], where: str) -> str | None:
+    """A string option of the sidecar or an argument, checked against ``allowed``."""
+    if value is None:
+        return None
+    if not isinstance(value, str) or value not in allowed:
+        raise ValueError(f"{where}: {key} = {value!r} is invalid: expected one of "
+                         f"{', '.join(repr(a) for a in allowed)}")
+    return value
+
+
+def _order(level_order, side: Mapping[str, Any], where: str) -> tuple[str, str]:
+    """(level order, where it was stated): the argument, else [levels] level_order, else base-first."""
+    arg = _option(level_order, "level_order", LEVEL_ORDERS, "level_order")
+    lv = side.get("levels", {})
+    side_order = _option(lv.get("level_order") if isinstance(lv, Mapping) else None,
+                         "[levels] level_order", LEVEL_ORDERS, where)
+    if arg is not None:
+        return arg, "the argument level_order"
+    if side_order is not None:
+        return side_order, where
+    return "base-first", "the default"
+
+
+def _level_masses(masses, weights, weight_unit: str, side_masses, n_levels: int, where: str,
+                  *, sidecar: str = "run.toml") -> np.ndarray:
     if masses is not None and weights is not None:
         raise ValueError("give masses= or weights=, not both")
     if masses is not None:
@@ -449,12 +684,13 @@ def _level_masses(masses, weights, weight_unit: str, side_masses, n_levels: int,
     elif side_masses is not None:
         m = side_masses
     else:
-        raise ValueError(
-            f"{where}: no level masses: give masses= [t] or weights= (bottom-up) or a TOML sidecar with "
-            "[levels] masses/weights (for the BNCS building: weights=structures.shake_table.BNCS_WEIGHTS_KN)"
-        )
+        raise MetadataError(
+            f"{where}: no level masses",
+            "give masses= [t] or weights= (base slab first unless level_order='roof-first'), or "
+            f"[levels] masses/weights in {sidecar} (docs/shake_table_data.md; for the BNCS building: "
+            "weights=structures.shake_table.BNCS_WEIGHTS_KN)", what="masses", sidecar=sidecar)
     if m.size != n_levels:
-        raise ValueError(f"{where}: {m.size} level masses for {n_levels} levels (bottom-up order expected)")
+        raise ValueError(f"{where}: {m.size} level masses for {n_levels} levels")
     return m
 
 
@@ -500,9 +736,15 @@ def _folder_sidecar(folder: Path) -> dict:
     return {}
 
 
-def _read_folder(folder: Path, name, rate_hz, masses, weights, weight_unit):
+def _read_folder(folder: Path, name, rate_hz, masses, weights, weight_unit, level_order, a1):
     side = _folder_sidecar(folder)
     where = side.get("_path", str(folder))
+    sidecar = side.get("_path", str(folder / "run.toml"))
+    order_name, order_from = _order(level_order, side, where)
+    lv = side.get("levels", {})
+    a1_arg = _option(a1, "a1", A1_LEVELS, "a1")
+    a1_side = _option(lv.get("a1") if isinstance(lv, Mapping) else None, "[levels] a1", A1_LEVELS, where)
+    a1_level = a1_arg or a1_side or "roof"
     n = 0
     while _find(folder, f"a{n + 1}") is not None:
         n += 1
@@ -527,8 +769,10 @@ def _read_folder(folder: Path, name, rate_hz, masses, weights, weight_unit):
                          f"has {ref}; all channels must have the same length")
     rate = rate_hz if rate_hz is not None else side.get("rate_hz")
     if rate is None:
-        raise ValueError(f"{folder}: the sampling rate is not stated: give rate_hz= (BNCS: 200) or "
-                         "rate_hz in run.toml")
+        raise MetadataError(
+            f"{folder}: the sampling rate is not stated",
+            f"give rate_hz= [Hz] or rate_hz = ... in {sidecar} (docs/shake_table_data.md; the raw BNCS "
+            "runs: 200)", what="rate_hz", sidecar=sidecar)
     try:
         if isinstance(rate, bool):
             raise TypeError
@@ -538,13 +782,17 @@ def _read_folder(folder: Path, name, rate_hz, masses, weights, weight_unit):
     if not (math.isfinite(rate) and rate > 0):
         raise ValueError(f"{where}: rate_hz = {rate!r} is invalid: expected a finite number > 0 Hz")
     side_names, side_masses = _sidecar_levels(side, where)
-    m = _level_masses(masses, weights, weight_unit, side_masses, n, where)
+    m = _level_masses(masses, weights, weight_unit, side_masses, n, where, sidecar=sidecar)
     if side_names is not None and len(side_names) != n:
         raise ValueError(f"{where}: [levels] names has {len(side_names)} labels but the folder has {n} "
                          f"levels (a1..a{n})")
-    names = side_names or [f"a{i}" for i in range(n, 0, -1)]
+    if order_name == "roof-first":  # the lists were given roof first: put them bottom-up
+        m = m[::-1].copy()
+        side_names = None if side_names is None else side_names[::-1]
+    # bottom-up: aN (base slab) ... a1 (roof), or a1 ... aN when a1 is the base slab
+    order = list(range(n, 0, -1)) if a1_level == "roof" else list(range(1, n + 1))
+    names = side_names or [f"a{i}" for i in order]
     nt = chans["u"].size
-    order = list(range(n, 0, -1))  # bottom-up: aN (base slab) ... a1 (roof)
     return ShakeTableRun(
         name=name or str(side.get("name", folder.name)),
         time=np.arange(nt) / rate,
@@ -556,7 +804,10 @@ def _read_folder(folder: Path, name, rate_hz, masses, weights, weight_unit):
         table_disp=chans.get("du"),
         source=str(folder),
         meta={"layout": "folder", "rate_hz": rate,
-              "rate_source": "the argument rate_hz" if rate_hz is not None else where},
+              "rate_source": "the argument rate_hz" if rate_hz is not None else where,
+              "level_order": order_name, "level_order_source": order_from, "a1": a1_level, "sidecar": sidecar,
+              "masses_source": ("the argument masses" if masses is not None else
+                                "the argument weights" if weights is not None else where)},
     )
 
 
@@ -585,7 +836,7 @@ def _unit_of(col: str, kind: str, table: dict[str, float], side_units: Mapping[s
     return table[unit]
 
 
-def _read_csv(path: Path, name, masses, weights, weight_unit):
+def _read_csv(path: Path, name, masses, weights, weight_unit, level_order, rate_hz):
     try:
         df = pd.read_csv(path)
     except (OSError, ValueError, EOFError, zlib.error) as exc:
@@ -623,6 +874,11 @@ def _read_csv(path: Path, name, masses, weights, weight_unit):
     agcol = pick("table_accel", True)
     tdcol = pick("table_disp", False)
     side_names, side_masses = _sidecar_levels(side, side.get("_path", where))
+    order_name, order_from = _order(level_order, side, side.get("_path", where))
+    lv = side.get("levels", {})
+    if isinstance(lv, Mapping) and "a1" in lv:
+        raise ValueError(f"{side['_path']}: [levels] a1 is for the folder layout (files a1..aN); a CSV "
+                         "names its levels by column")
     found = []
     for c in cols:
         if "_accel_abs" in c:
@@ -630,7 +886,7 @@ def _read_csv(path: Path, name, masses, weights, weight_unit):
     if side_names is None:
         if not found:
             raise ValueError(f"{where}: no <LEVEL>_accel_abs_<unit> columns; columns are {', '.join(cols)}")
-        side_names = found  # file order, taken as bottom-up
+        side_names = found  # file order, taken in the stated level order
     else:
         for lvl in side_names:
             for kind in ("accel_abs", "disp_rel"):
@@ -643,14 +899,31 @@ def _read_csv(path: Path, name, masses, weights, weight_unit):
         dc = pick(f"{lvl}_disp_rel", True)
         accel.append(column(ac) * _unit_of(ac, "accel", ACCEL_UNITS, units, where))
         disp.append(column(dc) * _unit_of(dc, "disp", DISP_UNITS, units, where))
-    m = _level_masses(masses, weights, weight_unit, side_masses, len(side_names), side.get("_path", where))
+    m = _level_masses(masses, weights, weight_unit, side_masses, len(side_names), side.get("_path", where),
+                      sidecar=side.get("_path", str(path.with_name(path.name.split(".")[0] + ".toml"))))
+    if order_name == "roof-first":  # the lists were given roof first: put them bottom-up
+        m = m[::-1].copy()
+        side_names = side_names[::-1]
+        accel, disp = accel[::-1], disp[::-1]
     stem = path.name
     for suf in (".gz", ".csv"):
         stem = stem.removesuffix(suf)
-    meta = {"layout": "csv", **{k: v for k, v in side.items() if k not in ("levels", "units", "_path")}}
+    meta = {"layout": "csv", **{k: v for k, v in side.items() if k not in ("levels", "units", "_path")},
+            "level_order": order_name, "level_order_source": order_from,
+            "masses_source": ("the argument masses" if masses is not None else
+                              "the argument weights" if weights is not None else side.get("_path", where))}
+    time = column(tcol) * tfac
+    t_rate = (time.size - 1) / (time[-1] - time[0]) if time.size > 1 and time[-1] > time[0] else math.nan
+    stated = ((rate_hz, "the argument rate_hz"), (side.get("rate_hz"), f"rate_hz in {side.get('_path')}"))
+    for value, given in stated:
+        if value is not None and math.isfinite(t_rate) and not (
+                isinstance(value, (int, float)) and abs(t_rate - float(value)) <= 1e-6 * t_rate):
+            raise ValueError(f"{where}: {given} = {value!r} Hz disagrees with its column {tcol!r} "
+                             f"({t_rate:.6g} Hz); a CSV's sampling rate is its time column")
+    meta["rate_source"] = f"its column {tcol!r}"
     return ShakeTableRun(
         name=name or str(side.get("name", stem)),
-        time=column(tcol) * tfac,
+        time=time,
         table_accel=column(agcol) * _unit_of(agcol, "accel", ACCEL_UNITS, units, where),
         accel=np.column_stack(accel),
         disp=np.column_stack(disp),
@@ -671,6 +944,8 @@ def read_run(
     masses: Sequence[float] | None = None,
     weights: Sequence[float] | None = None,
     weight_unit: str = "kN",
+    level_order: str | None = None,
+    a1: str | None = None,
     check: bool = True,
     cutoff_hz: float = 5.0,
     tol: float = 0.1,
@@ -682,27 +957,43 @@ def read_run(
     path : a folder of ``a1..aN``, ``d1..dN``, ``u``, ``du`` files, or a CSV (``.csv`` /
         ``.csv.gz``) with a TOML sidecar.
     name : label (default: the sidecar's ``name`` or the file/folder name).
-    rate_hz : sampling rate of the folder layout [Hz] (default: ``rate_hz`` in its sidecar).
-    masses, weights : level masses [t] or weights [``weight_unit``], bottom-up (base slab first);
-        override the sidecar.  Weights are divided by g = 9.81 m/s^2.
-    check : run :func:`check_consistency` (``cutoff_hz``, ``tol``) and warn on failures.
+    rate_hz : sampling rate of the folder layout [Hz] (default: ``rate_hz`` in its sidecar); for a
+        CSV it must agree with the time column.
+    masses, weights : level masses [t] or weights [``weight_unit``], in ``level_order``; override
+        the sidecar.  Weights are divided by g = 9.81 m/s^2.
+    level_order : ``"base-first"`` or ``"roof-first"``: how every list of levels runs (masses,
+        weights, sidecar names, the CSV's columns when no names are given); overrides
+        ``[levels] level_order`` of the sidecar; default base-first.
+    a1 : folder layout: the level of the files ``a1``/``d1``, ``"roof"`` (default, the BNCS
+        convention) or ``"base"``; overrides ``[levels] a1`` of the sidecar.
+    check : run :func:`check_consistency` (``cutoff_hz``, ``tol``) and :func:`check_level_order`,
+        warn on failures, and raise when the failure is that of a wrong sampling rate.
+
+    The sidecar format, its keys and units: ``docs/shake_table_data.md``.
 
     Raises
     ------
+    MissingMetadataError : the sampling rate or the level masses are not stated.
     ValueError : missing file/column, malformed value (names file, column/line and value),
-        unknown unit, masses missing or of the wrong count.
+        unknown unit, masses of the wrong count, a sampling rate the channels contradict
+        (:meth:`ConsistencyReport.rate_looks_wrong`: "the sampling rate ... looks wrong").
 
     Warns
     -----
     ConsistencyWarning : a consistency check failed (the report is in ``run.consistency``).
+    LevelOrderWarning : the levels look upside down, or the masses listed in the opposite order
+        (:func:`check_level_order`).
     """
     p = Path(path)
     if not p.exists():
         raise ValueError(f"shake-table run {str(p)!r} does not exist (a folder or a CSV file)")
     if p.is_dir():
-        run = _read_folder(p, name, rate_hz, masses, weights, weight_unit)
+        run = _read_folder(p, name, rate_hz, masses, weights, weight_unit, level_order, a1)
     else:
-        run = _read_csv(p, name, masses, weights, weight_unit)
+        if a1 is not None:
+            raise ValueError(f"{p}: a1 is for the folder layout (files a1..aN); a CSV names its levels "
+                             "by column")
+        run = _read_csv(p, name, masses, weights, weight_unit, level_order, rate_hz)
     if check:
         if run.time.size <= _MIN_FILTER_SAMPLES:
             raise ValueError(f"{run.source}: {run.time.size} samples are too few for the consistency check "
@@ -714,9 +1005,33 @@ def read_run(
                     if "rate_source" in run.meta else "")
             raise ValueError(f"{run.source}{rate}: {exc}") from None
         run = replace(run, consistency=rep)
+        if rep.rate_looks_wrong():
+            raise _wrong_rate_error(run, rep)
         if not rep.ok:
             warnings.warn(f"run {run.name!r} ({run.source}): " + str(rep), ConsistencyWarning, stacklevel=2)
+        for msg in check_level_order(run):
+            warnings.warn(f"run {run.name!r} ({run.source}): {msg}", LevelOrderWarning, stacklevel=2)
     return run
+
+
+def _wrong_rate_error(run: ShakeTableRun, rep: ConsistencyReport) -> MetadataError:
+    src = run.meta.get("rate_source", "")
+    folder = run.meta.get("layout") == "folder"
+    stated = f"{run.rate_hz:.6g} Hz" + (f" ({src})" if src else "")
+    n_pass = int(rep.table["passed"].sum())
+    unit = "in m" if folder else "in the unit their column names"
+    fact = (f"{run.source}: the sampling rate {stated} looks wrong: at {run.rate_hz:.6g} Hz the second "
+            f"derivative of the displacements is {1 / rep.scale:.3g} times the measured accelerations "
+            f"relative to the table (median of {len(rep.table)} channels, correlation >= "
+            f"{rep.scale_correlation:.4f} after a {rep.cutoff_hz:g} Hz low-pass; {n_pass} of "
+            f"{len(rep.table)} consistency checks pass), which a rate of about "
+            f"{rep.implied_rate_hz:.3g} Hz would explain (or displacements not {unit})")
+    if folder:
+        sidecar = str(run.meta.get("sidecar") or Path(run.source) / "run.toml")
+        hint = f"give the recorder's rate: rate_hz= or rate_hz in {sidecar} (docs/shake_table_data.md)"
+        return MetadataError(fact, hint, what="rate_hz", sidecar=sidecar)
+    return MetadataError(fact, "check the time column and the unit suffixes (docs/shake_table_data.md)",
+                         what="time", sidecar="")
 
 
 def write_run(run: ShakeTableRun, path: str | Path, *, float_format: str = "%.7g",

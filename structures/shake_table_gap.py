@@ -1,55 +1,41 @@
-"""The sim-to-real gap of a base-isolated building on shake-table runs (issue 15, point 5).
+"""The sim-to-real gap of a base-isolated building on shake-table runs (issues 15 and 27).
 
-:func:`shake_table_gap` answers, on real runs, *does my calibrated model predict the next, larger
-earthquake, where does it miss, why, and what fixes it?*:
+:func:`shake_table_gap` answers, on real runs, *does my calibrated building predict the next,
+larger earthquake, where does it miss, why, and what fixes it?*  The model is the building
+(:mod:`structures.building_model`), not the isolator loop:
 
-1. **Isolator law.** The isolation tests (:func:`structures.isolation_test`: d_0 against
-   F = -sum_i m_i a_i) of the calibration runs, decimated to ``rate_hz`` (25 Hz by default,
-   anti-aliased by :meth:`ShakeTableRun.decimate`), are joined in the order the runs are given
-   (their chronological order) into one :class:`~rrfrei.io.ShearTest`, so a law's state is
-   carried from run to run.  The law is fitted by the gap engine's fast fit
-   (:class:`rrfrei.gap.model.IsolatorModel`: bounded least squares, then a Laplace posterior;
-   the emcee run of ``rrfrei.calibrate`` does not fit the time budget).  ``law="auto"`` fits
-   every OpenSees law that needs no bearing geometry (``plasticity``, ``bouc_wen``, ``hdr``;
-   ``elastomeric_x`` needs the bearings' geometry, which the data do not give) and keeps the
-   one with the highest leave-one-cycle-out elpd (PSIS) on the calibration data.
-2. **Diagnosis.** :func:`rrfrei.gap.diagnose` on that joined test, every held-out run's
-   isolation test predicted *after* the runs that precede it (:meth:`rrfrei.io.ShearTest.after`:
-   the law is driven through the earlier runs' measured displacements first, so softening
-   carried from run to run is visible to the effects that hold state).  Effects: the catalogue's
-   (``rrfrei.gap.catalogue.catalogue()``) unless ``effects`` names some.
-3. **Building.** The superstructure from :func:`structures.identify_superstructure` on the
-   calibration run where it holds (every story R^2 >= 0.8 and k, c > 0; the best such run by
-   its worst R^2), or from a building TOML; the isolator is the calibrated layer law (count 1,
-   length scale 1).  It is identified before any isolator is fitted, so a calibration set
-   without a usable superstructure (or a TOML whose story count does not fit the runs) is a
-   user error reported in seconds.  Every run, calibration and held-out, is predicted by driving the building
-   with the measured table accelerations of all the runs in order, separated by ``pad_s``
-   seconds of rest, so the isolators' state is carried between runs as in the test program.
-   Displacement channels are compared relative to their value at the start of each run (the
-   records start at zero displacement).  The building runs at the runs' own rate (50 Hz for
-   the bundled ones).
-4. **Before / after.** The building is run with ``n_draws`` posterior draws of the baseline law
-   and of the diagnosed augmented law (``base+effect``, which runs everywhere a law runs);
-   per-channel NRMSE of the posterior median on the calibration and the held-out runs
-   (``isolator_disp`` [m], ``isolator_force`` [kN] = -sum_i m_i a_i, ``base_shear`` [kN] =
-   the story-1 shear above the base slab, ``roof_accel`` [m/s^2]), and the coverage of two
-   95 % bands: the *parameter* band (draws of the law only) and the *predictive* band, the
-   parameter draws plus a Gaussian error per channel whose standard deviation is the RMS
-   residual of the same model on the calibration runs (the model error measured where it was
-   calibrated).
-5. **Building check.** Every candidate effect's optimum (and the baseline's) is also run once
-   through the building: the held-out NRMSE per channel shows whether the isolation-level
-   ranking carries to the building (it need not: the diagnosis scores the force given the
-   measured displacement, the building feeds its own displacement back).
+1. **Superstructure.** From :func:`structures.identify_superstructure` on the calibration run
+   where it holds (every story R^2 >= 0.8 and k, c > 0; the best such run by its worst R^2), or
+   from a building TOML.  It is identified first, so a calibration set without a usable
+   superstructure is a user error reported in seconds.
+2. **Loop fit (the start).** The isolation tests (d_0 against F = -sum_i m_i a_i) of the
+   calibration runs, decimated to ``rate_hz``, joined in chronological order, are fitted by the
+   isolator law (equation error, :class:`rrfrei.gap.model.IsolatorModel`); ``law="auto"`` keeps
+   the law of :data:`AUTO_LAWS` with the highest leave-one-cycle-out elpd.  This fit starts the
+   building's calibration and is reported as the comparison row (``loop_fit``).
+3. **Output-error calibration and diagnosis.** :class:`structures.building_model.BuildingModel`
+   simulates the building driven by every run's measured table acceleration, in order, ``pad_s``
+   seconds of rest between runs, the isolators' state carried; the law's, the superstructure's
+   stiffness scale and damping, and the effects' parameters are fitted to the measured isolator
+   displacement, isolation-layer force and roof acceleration (each normalised; residual model and
+   posterior in that module).  The gap engine (:func:`rrfrei.gap.diagnose`) diagnoses it: every
+   catalogue effect and every system effect (isolation-layer viscous damping, superstructure
+   softening with amplitude) is fitted by output error on the calibration runs only and judged on
+   the held-out runs' simulated responses, blocks of 10 s time windows holding every fitted
+   channel (the engine's block rule: verdict, evidence, shrink with its bootstrap interval).
+4. **Predictions.** Every run, calibration and held-out, is predicted by the baseline building and
+   by the final one (with the named effects): per run and channel the NRMSE of the median, the
+   peak error, the coverage of the predictive 95 % band (posterior draws plus the residual model)
+   and its width over the measured RMS (``runs``).  Displacements are relative to each run's start.
+5. **Building check.** Every candidate's optimum run once on the held-out runs.
 6. **Where.** A residual table of the held-out predictions: share of the squared error by run,
-   channel, amplitude range (|d_0| within / beyond the calibrated peak), time window (10 s)
-   and frequency band.
+   channel (isolator: ``isolator_disp``, ``isolator_force``; superstructure: ``base_shear``,
+   ``roof_accel``), amplitude (|d_0| within / beyond the calibrated peak), time window (10 s) and
+   frequency band.
 
-Numerical robustness: a draw whose isolator simulation fails is retried with 4 then 16
-sub-increments per sample, and is left out of the bands if it still fails; a building analysis
-that fails (``ConvergenceError``) is left out too.  When every draw fails the pipeline raises a
-:class:`rrfrei.errors.NumericalFailure` naming the law, the run and the failure.
+Numerical robustness: a simulation that fails inside an optimiser is a bad point, a failed
+posterior draw is left out of the bands (and counted); when the baseline cannot be fitted the
+pipeline raises a :class:`rrfrei.errors.NumericalFailure` naming the law, the runs and the failure.
 """
 
 from __future__ import annotations
@@ -71,26 +57,24 @@ from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.calibration.checks import nrmse
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
-from rrfrei.gap.diagnose import GapReport, _Checkpoint, _loco, diagnose
-from rrfrei.gap.model import (
-    LEVEL,
-    RETRY_SUBSTEPS,
-    FitResult,
-    GapModel,
-    IsolatorFit,
-    IsolatorModel,
-    Prediction,
-    gaussian_loglik,
-    simulate_retry,
-)
-from rrfrei.io import ShearTest, concat_tests
+from rrfrei.gap.catalogue import catalogue
+from rrfrei.gap.diagnose import Checkpoint, GapReport, diagnose, loco
+from rrfrei.gap.model import LEVEL, RETRY_SUBSTEPS, IsolatorModel, simulate_retry
+from rrfrei.io import ShearTest
 from structures.building import Isolator, ShearBuilding
+from structures.building_model import (
+    SYSTEM_EFFECTS,
+    BuildingData,
+    BuildingFit,
+    BuildingModel,
+    calibration_test,
+)
 from structures.history import ConvergenceError, time_history
 from structures.identify import identify_superstructure
-from structures.shake_table import ShakeTableRun, available_runs, isolation_test, load_run, read_run
+from structures.shake_table import ShakeTableRun, available_runs, load_run, read_run
 
-__all__ = ["AUTO_LAWS", "BNCS_ORDER", "CHANNELS", "CarriedIsolatorModel", "ShakeTableGap",
-           "SequencePrediction", "predict_sequence", "resolve_run", "shake_table_gap"]
+__all__ = ["AUTO_LAWS", "BNCS_ORDER", "CHANNELS", "ShakeTableGap", "SequencePrediction",
+           "building_prediction", "predict_sequence", "resolve_run", "run_metrics", "shake_table_gap"]
 
 BNCS_ORDER = ("CNP100", "LAC100", "ICA50", "ICA100")
 """The bundled runs in the order of the BNCS base-isolated test program (Chen et al. 2016; the
@@ -105,6 +89,10 @@ CHANNELS = ("isolator_disp", "isolator_force", "base_shear", "roof_accel")
 [kN] and roof absolute acceleration [m/s^2]."""
 
 UNITS = {"isolator_disp": "m", "isolator_force": "kN", "base_shear": "kN", "roof_accel": "m/s^2"}
+
+COMPONENT = {"isolator_disp": "isolator", "isolator_force": "isolator", "base_shear": "superstructure",
+             "roof_accel": "superstructure"}
+"""Which part of the building a channel reads first."""
 
 BANDS_HZ = ((0.0, 0.3), (0.3, 1.0), (1.0, 3.0), (3.0, 10.0), (10.0, math.inf))
 """Frequency bands of the residual table [Hz] (isolation mode ~0.4 Hz, superstructure 1.5-10 Hz)."""
@@ -136,128 +124,6 @@ def simulate_law(spec, p: np.ndarray, test: ShearTest) -> tuple[int, np.ndarray]
     (:func:`rrfrei.gap.model.simulate_retry`).  Returns (status, force): status 0 on success."""
     status, F, _ = simulate_retry(spec, p, test)
     return status, F
-
-
-# ---------------------------------------------------------------------------------------------
-# the gap engine's model with state carried between runs
-# ---------------------------------------------------------------------------------------------
-@dataclass(eq=False)
-class CarriedFit(FitResult):
-    """An :class:`IsolatorFit` whose failing simulations are retried with sub-increments
-    (:func:`simulate_law`) instead of turning every prediction into NaN; a test's ``preceding``
-    runs are driven through first, as in :class:`IsolatorFit`."""
-
-    inner: IsolatorFit
-    _cache: dict = field(default_factory=dict, repr=False)
-
-    @property
-    def name(self) -> str:  # type: ignore[override]
-        return self.inner.name
-
-    @property
-    def params(self) -> dict[str, float]:  # type: ignore[override]
-        return self.inner.params
-
-    @property
-    def sigma(self) -> float:  # type: ignore[override]
-        return self.inner.sigma
-
-    @property
-    def noise(self) -> float:  # type: ignore[override]
-        return self.inner.noise
-
-    @property
-    def note(self) -> str:
-        return self.inner.note
-
-    @property
-    def spec(self):
-        return self.inner.spec
-
-    @property
-    def P(self) -> np.ndarray:
-        return self.inner.P
-
-    def predict(self, data) -> Prediction:
-        key = id(data)
-        if key in self._cache:
-            return self._cache[key][1]
-        n = len(data)
-        fit = self.inner
-        S = fit.P.shape[0]
-        F = np.empty((S, n))
-        ok = np.zeros(S, dtype=bool)
-        for s in range(S):
-            st, f = simulate_law(fit.spec, fit.P[s], data)
-            if st == 0:
-                F[s] = f
-                ok[s] = True
-        if not ok.any():
-            st, f = simulate_law(fit.spec, fit.p_opt, data)
-            if st != 0:
-                raise NumericalFailure(f"law {fit.name!r} on {data.name!r}: every posterior draw and the "
-                                       f"optimum fail (status {st}, also with {SUBSTEPS[-1]} sub-increments)")
-            F, ok, sig = f[None, :], np.array([True]), np.array([fit.sigma])
-        else:
-            F, sig = F[ok], fit.sig[ok]
-        rng = np.random.default_rng(fit.seed + 1)
-        Y = F + rng.normal(size=F.shape) * sig[:, None]
-        a = (1 - LEVEL) / 2
-        lo, hi = np.quantile(Y, [a, 1 - a], axis=0)
-        pred = Prediction(mean=F.mean(axis=0), lower=lo, upper=hi, draws=F, sigma=sig)
-        self._cache[key] = (data, pred)
-        return pred
-
-    def loglik(self, data) -> np.ndarray:
-        return gaussian_loglik(data.force, self.predict(data))
-
-
-class CarriedIsolatorModel(GapModel):
-    """:class:`IsolatorModel` whose fits are :class:`CarriedFit`\\ s (held-out runs given as
-    ``test.after(*earlier)`` carry the state of the earlier runs, as with :class:`IsolatorModel`;
-    here a failing simulation is retried rather than lost)."""
-
-    def __init__(self, inner: IsolatorModel) -> None:
-        self.inner = inner
-
-    @property
-    def name(self) -> str:  # type: ignore[override]
-        return self.inner.name
-
-    @property
-    def spec(self):
-        return self.inner.spec
-
-    def fit(self, data, *, seed: int = 0, start=None, budget: TimeBudget | None = None) -> CarriedFit:
-        return CarriedFit(self.inner.fit(data, seed=seed, start=start, budget=budget))
-
-    def augment(self, effects: Sequence[str], variants: Mapping[str, str] | None = None
-                ) -> CarriedIsolatorModel:
-        return CarriedIsolatorModel(self.inner.augment(effects, variants=variants))
-
-    def variants(self, effect: str) -> tuple[str, ...]:
-        return self.inner.variants(effect)
-
-    def observed(self, data) -> np.ndarray:
-        return self.inner.observed(data)
-
-    def groups(self, data) -> np.ndarray:
-        return self.inner.groups(data)
-
-    def cannot_judge(self, effect: str, data) -> str | None:
-        return self.inner.cannot_judge(effect, data)
-
-    def early(self, data) -> ShearTest | None:
-        return self.inner.early(data)
-
-    def checkpoint_key(self, data) -> str:
-        return self.inner.checkpoint_key(data) + "|retried"
-
-    def fit_state(self, fit: CarriedFit) -> dict[str, np.ndarray]:
-        return self.inner.fit_state(fit.inner)
-
-    def restore(self, state: Mapping[str, np.ndarray]) -> CarriedFit:
-        return CarriedFit(self.inner.restore(state))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -428,7 +294,7 @@ def residual_table(pred: SequencePrediction, runs: Sequence[str], calibrated_pea
     for c in CHANNELS:
         rms = float(np.sqrt(np.mean(np.concatenate([pred.measured[r][c] for r in runs]) ** 2))) or 1.0
         tot = float(sum(np.sum(((pred.measured[r][c] - pred.median[r][c]) / rms) ** 2) for r in runs)) or 1.0
-        rows.append({"axis": "channel", "segment": c, "run": "all", "channel": c,
+        rows.append({"axis": "channel", "segment": f"{c} ({COMPONENT[c]})", "run": "all", "channel": c,
                      "n": int(sum(pred.measured[r][c].size for r in runs)),
                      "error_share": 1.0, "nrmse": pred.nrmse(runs)[c]})
         for r in runs:
@@ -473,19 +339,78 @@ def residual_table(pred: SequencePrediction, runs: Sequence[str], calibrated_pea
 
 
 # ---------------------------------------------------------------------------------------------
+# the building's predictions and per-run metrics
+# ---------------------------------------------------------------------------------------------
+def building_prediction(fit: BuildingFit, data_of: Mapping[str, BuildingData], order: Sequence[str]
+                        ) -> SequencePrediction:
+    """The posterior prediction of every run of ``order`` by ``fit`` (:class:`BuildingFit`), each
+    run simulated by the data that observe it (``data_of[run]``: the runs before it driven first);
+    ``lower``/``upper``: the predictive 95 % band (draws plus the residual model)."""
+    meas, med, lo, hi, draws, times = {}, {}, {}, {}, {}, {}
+    n_ok = []
+    for r in order:
+        d = data_of[r]
+        meas[r], med[r], lo[r], hi[r], draws[r] = {}, {}, {}, {}, {}
+        times[r] = d.time(r)
+        for c in CHANNELS:
+            med[r][c], lo[r][c], hi[r][c] = fit.band(d, r, c)
+            draws[r][c] = fit.channel_draws(d, r, c)
+            meas[r][c] = d.measured(r)[c]
+        n_ok.append(draws[r][CHANNELS[0]].shape[0])
+    S = int(fit.X.shape[0])
+    failures = (fit.note,) if fit.note and "failed" in fit.note else ()
+    return SequencePrediction(law=fit.name, runs=tuple(order), time=times, measured=meas, median=med,
+                              lower=lo, upper=hi, draws=draws, n_draws=S, n_failed=S - min(n_ok),
+                              failures=failures)
+
+
+def run_metrics(pred: SequencePrediction, run: str) -> dict[str, dict[str, float]]:
+    """Per channel of ``run``: ``nrmse`` of the median, relative ``peak_error`` of the median,
+    ``coverage`` of the predictive 95 % band and ``band_width`` = mean band width / RMS of the
+    measured channel (a band as wide as the signal is not a prediction)."""
+    out = {}
+    for c in CHANNELS:
+        m, p = pred.measured[run][c], pred.median[run][c]
+        lo, hi = pred.lower[run][c], pred.upper[run][c]
+        rms = float(np.sqrt(np.mean(m**2)))
+        pk_m, pk_p = float(np.max(np.abs(m))), float(np.max(np.abs(p)))
+        out[c] = {"nrmse": float(nrmse(m, p)), "peak_error": (pk_p - pk_m) / pk_m if pk_m > 0 else math.nan,
+                  "coverage": float(np.mean((m >= lo) & (m <= hi))),
+                  "band_width": float(np.mean(hi - lo)) / rms if rms > 0 else math.nan}
+    return out
+
+
+def _pooled(pred: SequencePrediction, runs: Sequence[str]) -> dict[str, dict[str, float]]:
+    """Coverage and band width per channel pooled over ``runs``."""
+    out = {}
+    for c in CHANNELS:
+        m = np.concatenate([pred.measured[r][c] for r in runs])
+        lo = np.concatenate([pred.lower[r][c] for r in runs])
+        hi = np.concatenate([pred.upper[r][c] for r in runs])
+        rms = float(np.sqrt(np.mean(m**2)))
+        out[c] = {"coverage": float(np.mean((m >= lo) & (m <= hi))),
+                  "band_width": float(np.mean(hi - lo)) / rms if rms > 0 else math.nan}
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
 # the pipeline
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class ShakeTableGap:
     """Result of :func:`shake_table_gap` (see the module docstring).
 
+    ``verdict``: the one answer (an effect, ``"none"``, ``"unexplained"`` or ``"incomplete"``,
+    :attr:`rrfrei.gap.GapReport.verdict`); ``diagnosis`` is the same string (kept for old callers).
     ``gap_before`` / ``gap_after``: {"calibration": {channel: NRMSE}, "holdout": {...}} of the
-    building with the baseline law and with the diagnosed augmented law (the same as before when
-    the diagnosis is no effect); ``coverage``: held-out predictive-band coverage per channel (of
-    the final model); ``coverage_parameter_band``: the same for the parameter band only;
-    ``extrapolation``: held-out run -> its peak |d_0| over the calibration runs' peak;
-    ``building_check``: held-out NRMSE per channel of the building with the optimum of the
-    baseline and of every candidate effect (one analysis each), whether or not it was diagnosed.
+    building fitted by output error without effects and with the named ones; ``runs``: run ->
+    channel -> {nrmse, peak_error, coverage, band_width} of the final model on every calibration
+    and held-out run; ``coverage`` / ``band_width``: the same pooled over the held-out runs;
+    ``coverage_parameter_band``: coverage of the parameter band alone; ``extrapolation``:
+    held-out run -> its peak |d_0| over the calibration runs' peak; ``building_check``: held-out
+    NRMSE per channel of the optimum of the baseline and of every candidate (one analysis each);
+    ``loop_fit``: the comparison row, held-out NRMSE per channel of the building whose isolator is
+    the loop fit (equation error) and whose superstructure is the identified one.
     """
 
     law: str
@@ -515,11 +440,30 @@ class ShakeTableGap:
     notes: tuple[str, ...]
     elapsed: float
     seconds: dict
+    runs: dict = field(default_factory=dict)
+    band_width: dict = field(default_factory=dict)
+    loop_fit: dict = field(default_factory=dict)
+    final_fit: BuildingFit | None = field(default=None, repr=False)
+    base_fit: BuildingFit | None = field(default=None, repr=False)
+    cpu_seconds: float = float("nan")
+
+    @property
+    def verdict(self) -> str:
+        return self.report.verdict or self.report.diagnosis
 
     def shrink(self) -> dict[str, float]:
         """Per channel, 1 - held-out NRMSE after / before."""
         b, a = self.gap_before["holdout"], self.gap_after["holdout"]
         return {c: (1.0 - a[c] / b[c]) if b[c] > 0 else math.nan for c in CHANNELS}
+
+    def shrink_evidence(self) -> dict | None:
+        """The named effect's held-out systematic-gap shrink with its block-bootstrap interval
+        (:func:`rrfrei.gap.decision.shrink_ci`, all fitted channels, time-window blocks), against
+        the building fitted by output error without it; None when no effect is named."""
+        for s in self.report.steps[:1]:
+            if s.shrink_ci is not None:
+                return s.shrink_ci.as_dict()
+        return None
 
     def building_best(self) -> dict | None:
         """The candidate of :attr:`building_check` with the lowest held-out isolator-displacement
@@ -537,26 +481,41 @@ class ShakeTableGap:
     def as_dict(self) -> dict:
         """The JSON object of ``rrfrei shake-table --json``."""
         rep = self.report
+        ff = self.final_fit
         return {
             "law": self.law,
-            "diagnosis": self.diagnosis,
-            "verdict": rep.verdict or rep.diagnosis,
+            "verdict": self.verdict,
+            "diagnosis": self.verdict,
             "evidence": rep.as_dict().get("evidence"),
             "combination": list(self.combination),
+            "shrink": self.shrink_evidence(),
             "where": [{k: _num(v) if isinstance(v, float) else v for k, v in row.items()}
                       for row in self.where.to_dict("records")],
             "ranking": [{"effect": e.effect, "variant": e.variant, "delta_elpd": _num(e.delta_elpd),
                          "se": _num(e.se), "delta_holdout": _num(e.delta_holdout),
                          "se_holdout": _num(e.se_holdout),
                          "shrink_calibration": _num(e.shrink_calibration),
-                         "shrink_holdout": _num(e.shrink_holdout), "significant": bool(e.significant)}
+                         "shrink_holdout": _num(e.shrink_holdout), "significant": bool(e.significant),
+                         "shrink_ci": None if e.shrink_ci is None else e.shrink_ci.as_dict(), "why": e.why}
                         for e in rep.ranking],
             "extrapolation": {k: _num(v) for k, v in self.extrapolation.items()},
             "gap_before": _nums(self.gap_before),
             "gap_after": _nums(self.gap_after),
             "coverage": {k: _num(v) for k, v in self.coverage.items()},
+            "band_width": {k: _num(v) for k, v in self.band_width.items()},
             "coverage_parameter_band": {k: _num(v) for k, v in self.coverage_parameter_band.items()},
             "shrink_holdout": {k: _num(v) for k, v in self.shrink().items()},
+            "runs": {r: {c: {k: _num(v) for k, v in m.items()} for c, m in chans.items()}
+                     for r, chans in self.runs.items()},
+            "loop_fit": {k: ({c: _num(x) for c, x in v.items()} if isinstance(v, Mapping) else v)
+                         for k, v in self.loop_fit.items()},
+            "calibration": None if ff is None else {
+                "method": "output error (building simulated from the table accelerations)",
+                "params": {k: _num(v) for k, v in ff.params.items()},
+                "residual_sd": {k: _num(v) for k, v in ff.sigma_c.items()},
+                "residual_rho1": {k: _num(v) for k, v in ff.rho_c.items()},
+                "importance_ess": _num(ff.ess), "draws": int(ff.X.shape[0]),
+                "simulations": int(ff.nfev), "failed_simulations": int(ff.failed)},
             "building_check": [{k: _num(v) if isinstance(v, float) else v for k, v in row.items()}
                                for row in self.building_check.to_dict("records")],
             "building_best": (None if (bb := self.building_best()) is None
@@ -575,6 +534,7 @@ class ShakeTableGap:
             "not_evaluated": dict(rep.not_evaluated),
             "failed_analyses": {"before": self.before.n_failed, "after": self.after.n_failed},
             "elapsed_s": _num(self.elapsed),
+            "cpu_s": _num(self.cpu_seconds),
             "seconds": {k: _num(v) for k, v in self.seconds.items()},
             "notes": list(self.notes),
         }
@@ -593,21 +553,17 @@ def _names(items) -> list[str]:
 
 def _pick_law(cal: ShearTest, laws: Sequence[str], draws: int, seed: int, budget: TimeBudget,
               notes: list[str], checkpoint) -> tuple[str, pd.DataFrame, dict]:
-    """Fit each law in ``laws`` and rank by leave-one-cycle-out elpd (PSIS) on ``cal``; every fit is
-    saved in the ``checkpoint`` folder as the diagnosis's baseline, so the chosen law's is reused."""
+    """Fit each law in ``laws`` to the isolation loops and rank by leave-one-cycle-out elpd (PSIS)
+    on ``cal``; every fit is saved in the ``checkpoint`` folder and reused as the loop fit that
+    starts the output-error calibration."""
     model = IsolatorModel(laws[0], draws=draws)
     groups = model.groups(cal)
     rows, fits = [], {}
     for law in laws:
         t0 = _time.perf_counter()
         try:
-            m = CarriedIsolatorModel(IsolatorModel(law, draws=draws))
-            ck = _Checkpoint(checkpoint, m, cal, seed)
-            fit = ck.get("baseline")
-            if fit is None:
-                fit = m.fit(cal, seed=seed, budget=budget)
-                ck.put("baseline", m, fit)
-            elpd = float(_loco(fit.loglik(cal), groups).sum())
+            fit = _loop_fit(law, cal, draws, seed, budget, checkpoint)
+            elpd = float(loco(fit.loglik(cal), groups).sum())
             nr = float(nrmse(np.asarray(cal.force), fit.predict(cal).mean))
         except BudgetExceeded:
             raise
@@ -626,12 +582,25 @@ def _pick_law(cal: ShearTest, laws: Sequence[str], draws: int, seed: int, budget
     return str(df["law"].iloc[0]), df, fits
 
 
+def _loop_fit(law: str, cal: ShearTest, draws: int, seed: int, budget: TimeBudget | None, checkpoint):
+    """The isolator law fitted to the isolation loops (equation error), read from or saved to the
+    ``checkpoint`` folder."""
+    m = IsolatorModel(law, draws=draws)
+    ck = Checkpoint(checkpoint, m, cal, seed)
+    fit = ck.get("baseline")
+    if fit is None:
+        fit = m.fit(cal, seed=seed, budget=budget)
+        ck.put("baseline", m, fit)
+    return fit
+
+
 def _superstructure(cal_runs: Sequence[ShakeTableRun], building_toml, seed: int, notes: list[str]):
-    """(identification run name or TOML path, masses, stiffness, zeta, heights) of the superstructure."""
+    """(identification run name or TOML path, identification or ShearBuilding) of the superstructure."""
     if building_toml is not None:
         b = ShearBuilding.from_toml(building_toml, isolator_params=None) \
             if not isinstance(building_toml, ShearBuilding) else building_toml
-        return str(building_toml), b
+        return str(getattr(b, "name", "") or building_toml) if isinstance(building_toml, ShearBuilding) \
+            else str(building_toml), b
     best, best_r2 = None, -math.inf
     for r in cal_runs:
         if r.rate_hz < 30.0:
@@ -666,43 +635,50 @@ def shake_table_gap(
     building: str | Path | ShearBuilding | None = None,
     rate_hz: float = 25.0,
     effects: Sequence[str] | None = None,
-    draws: int = 60,
-    n_draws: int = 40,
+    draws: int = 30,
+    n_draws: int | None = None,
     pad_s: float = 10.0,
     seed: int = 0,
-    time_budget: float | TimeBudget | None = 170.0,
+    time_budget: float | TimeBudget | None = None,
     progress: bool = False,
     checkpoint: str | Path | None = None,
 ) -> ShakeTableGap:
-    """Calibrate, diagnose and predict a base-isolated building on shake-table runs.
+    """Calibrate a base-isolated building by output error on shake-table runs, diagnose its gap to
+    the held-out runs, and predict every run: the public entry point (module docstring).
 
     Parameters
     ----------
     runs : the runs in chronological order (bundled names, folders, CSVs or
-        :class:`ShakeTableRun`\\ s); default :data:`BNCS_ORDER`.
+        :class:`ShakeTableRun`\\ s, e.g. runs of a simulated building); default :data:`BNCS_ORDER`.
     calibrate, holdout : run names (as loaded) to calibrate on and to hold out; default every run
         but the last, and the last.  A name may hold several, comma-separated.
-    law : base isolator law, or ``"auto"`` (best leave-one-cycle-out elpd of :data:`AUTO_LAWS`).
-    building : TOML of a :class:`ShearBuilding` (or one) whose superstructure is used instead of
-        the identified one (its isolator is replaced by the calibrated law).
-    rate_hz : rate of the isolation tests the law is fitted on [Hz] (the runs' rate divided by an
-        integer).
-    effects : catalogue effects to try (default all).
-    draws : Laplace posterior draws per fit; ``n_draws`` of them drive the building.
+    law : base isolator law, or ``"auto"`` (best leave-one-cycle-out elpd of :data:`AUTO_LAWS` on
+        the isolation loops).
+    building : TOML of a :class:`ShearBuilding` (or one) whose superstructure (masses, story
+        stiffness, damping) is used instead of the identified one; its isolator is replaced.
+    rate_hz : rate of the isolation loops of the loop fit (the start) [Hz].
+    effects : candidates of the diagnosis (default: every catalogue effect and every system
+        effect, :data:`structures.building_model.SYSTEM_EFFECTS`); ``[]``: calibration only.
+    draws : posterior draws per building fit (each is a simulation of the runs).
+    n_draws : accepted for compatibility (the number of draws is ``draws``).
     pad_s : rest between runs in the building's record [s].
-    time_budget : wall-clock limit of the whole pipeline [s]; the diagnosis gets what the law
-        choice leaves minus a reserve for the building runs, and stops with the effects it has.
-    checkpoint : folder where every finished isolator fit is saved and reused by a rerun (as in
-        :func:`rrfrei.gap.diagnose`); None: a temporary folder, so that the law choice's fit of
-        the chosen law is the diagnosis's baseline.
+    time_budget : wall-clock limit [s] of the diagnosis; None: none.
+    checkpoint : folder where every finished fit (loop fits and building fits) is saved and reused.
+
+    Returns
+    -------
+    ShakeTableGap : ``verdict``, ``shrink_evidence()`` (shrink with its interval), ``runs``
+        (per-run, per-channel nrmse, peak_error, coverage, band_width), ``report`` (the
+        :class:`rrfrei.gap.GapReport` of the building-level diagnosis).
 
     Raises
     ------
-    ValueError : unknown run or law, a run in both sets, rates that do not divide, no
+    ValueError : unknown run or law, a run in both sets, rates that do not match, no
         superstructure.
     NumericalFailure : the baseline cannot be fitted, or every building analysis fails.
     """
     t_start = _time.perf_counter()
+    c_start = _time.process_time()
     seconds: dict[str, float] = {}
     budget = TimeBudget.of(time_budget, "shake-table gap", option="--time-budget")
     notes: list[str] = []
@@ -726,125 +702,162 @@ def shake_table_gap(
     unused = [n for n in names if n not in order]
     if unused:
         notes.append(f"runs {', '.join(unused)} are neither calibrated on nor held out: left out")
-    if not isinstance(n_draws, (int, np.integer)) or isinstance(n_draws, bool) or n_draws < 2:
-        raise ValueError(f"n_draws = {n_draws!r} is invalid: expected an integer >= 2")
-    if n_draws > draws:
-        raise ValueError(f"n_draws = {n_draws} is invalid: expected at most draws = {draws}")
+    if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) or draws < 4:
+        raise ValueError(f"draws = {draws!r} is invalid: expected an integer >= 4")
     fs = loaded[0].rate_hz
     for r in loaded:
         if abs(r.rate_hz - fs) > 1e-6 * fs:
             raise ValueError(f"runs {loaded[0].name!r} ({fs:g} Hz) and {r.name!r} ({r.rate_hz:g} Hz) have "
                              "different sampling rates; give runs at one rate")
-    # 1. isolation tests, chronological, decimated
+    known = (*catalogue(), *SYSTEM_EFFECTS)
+    for e in effects or ():
+        if e not in known:
+            raise ValueError(f"unknown effect {e!r}; available: {', '.join(known)}")
+    # 1. isolation tests, chronological, decimated (the loop fit: start and comparison row)
     t0 = _time.perf_counter()
-    tests = {n: isolation_test(by_name[n].decimate(rate_hz)) for n in order}
     cal_seq = [n for n in order if n in cal_names]
-    cal = concat_tests([tests[n] for n in cal_seq], name="+".join(cal_seq))
-    # each held-out run after every run before it in the order (its state carried in)
-    held = [tests[h].after(*[tests[n] for n in order[:order.index(h)]]) for h in ho_names]
-    cal_peak = float(np.max(np.abs(cal.disp)))
-    extrapolation = {h: float(np.max(np.abs(by_name[h].isolator_disp)) / cal_peak) for h in ho_names}
+    ho_seq = [n for n in order if n in ho_names]
+    cal = calibration_test([by_name[n] for n in cal_seq], rate_hz)
+    cal_peak = float(np.max(np.abs(np.concatenate([by_name[n].isolator_disp for n in cal_seq]))))
+    extrapolation = {h: float(np.max(np.abs(by_name[h].isolator_disp)) / cal_peak) for h in ho_seq}
     seconds["isolation tests"] = _time.perf_counter() - t0
     # 2. the superstructure first: a run that cannot give one (or a building TOML that does not
-    # fit the runs) is reported in seconds, before the minutes of isolator fits
+    # fit the runs) is reported in seconds, before the minutes of fits
     t0 = _time.perf_counter()
-    cal_runs = [by_name[n] for n in order if n in cal_names]
+    cal_runs = [by_name[n] for n in cal_seq]
     src, sup = _superstructure(cal_runs, building, seed, notes)
     if isinstance(sup, ShearBuilding) and sup.n_stories != loaded[0].n_levels - 1:
         raise ValueError(f"building {src!r} has {sup.n_stories} stories but the runs have "
                          f"{loaded[0].n_levels} levels ({loaded[0].n_levels - 1} stories)")
     seconds["superstructure"] = _time.perf_counter() - t0
-    # 3. law
+    # 3. the loop fit (law choice with "auto")
     t0 = _time.perf_counter()
     tmp = None
     if checkpoint is None:
         tmp = tempfile.TemporaryDirectory(prefix="rrfrei-shake-")
         checkpoint = tmp.name
-    if law == "auto":
-        base_law, law_scores, _ = _pick_law(cal, AUTO_LAWS, draws, seed, budget, notes, checkpoint)
-    else:
-        base_law, law_scores = str(law), pd.DataFrame(columns=["law", "loco_elpd", "nrmse", "seconds"])
-    seconds["law choice"] = _time.perf_counter() - t0
-    # 4. diagnosis
-    t0 = _time.perf_counter()
-    # reserve for the building runs (about 0.03 s per draw and run each, twice) and the report
-    reserve = 15.0 + 0.1 * n_draws * len(order)
-    diag_budget = TimeBudget(None if budget.seconds is None else max(budget.remaining - reserve, 1.0),
-                             what="shake-table diagnosis", option="--time-budget")
-    model = CarriedIsolatorModel(IsolatorModel(base_law, draws=draws))
     try:
-        rep = diagnose(model, cal, held, effects=effects, seed=seed, progress=progress,
-                       time_budget=diag_budget, checkpoint=checkpoint)
-    except BudgetExceeded as exc:
-        raise NumericalFailure(f"the baseline fit of {base_law!r} did not finish within the time budget: "
-                               f"{exc}") from None
+        loop_draws = 20
+        if law == "auto":
+            base_law, law_scores, loop_fits = _pick_law(cal, AUTO_LAWS, loop_draws, seed, budget, notes,
+                                                        checkpoint)
+            loop = loop_fits[base_law]
+        else:
+            base_law = str(law)
+            law_scores = pd.DataFrame(columns=["law", "loco_elpd", "nrmse", "seconds"])
+            try:
+                loop = _loop_fit(base_law, cal, loop_draws, seed, budget, checkpoint)
+            except BudgetExceeded as exc:
+                raise NumericalFailure(f"the loop fit of {base_law!r} did not finish within the time budget: "
+                                       f"{exc}") from None
+        seconds["loop fit"] = _time.perf_counter() - t0
+        # 4. the building: output-error calibration and the diagnosis on the simulated runs
+        t0 = _time.perf_counter()
+        seq = tuple(by_name[n] for n in order)
+        cal_data = BuildingData(seq, observed=tuple(cal_seq), pad_s=pad_s)
+        ho_data = [BuildingData(seq, observed=(h,), pad_s=pad_s) for h in ho_seq]
+        data_of = {n: cal_data for n in cal_seq} | {h: d for h, d in zip(ho_seq, ho_data)}
+        scales = {c: float(np.sqrt(np.mean(np.concatenate([cal_data.measured(n)[c] for n in cal_seq]) ** 2)))
+                  for c in CHANNELS}
+        a_ref = max(cal_data.peak_table_accel(n) for n in cal_seq)
+        model = BuildingModel(base_law, sup, cal, scales, draws=draws, loop_fit=loop, a_ref=a_ref)
+        cands = list(model.candidate_effects) if effects is None else list(effects)
+        try:
+            rep = diagnose(model, cal_data, ho_data, effects=cands, seed=seed, progress=progress,
+                           time_budget=budget, checkpoint=checkpoint, combine=True, max_combination=2)
+        except BudgetExceeded as exc:
+            raise NumericalFailure(f"the output-error fit of the building with {base_law!r} did not finish "
+                                   f"within the time budget: {exc}") from None
     finally:
         if tmp is not None:
             tmp.cleanup()
-    seconds["diagnosis"] = _time.perf_counter() - t0
-    # 5. building: every run with the baseline and the final law
+    seconds["building fits and diagnosis"] = _time.perf_counter() - t0
+    # 5. predictions of every run, baseline and final
     t0 = _time.perf_counter()
-    base_fit = rep.fits[rep.law]
-    final_name = "+".join([rep.law, *rep.combination])
-    final_fit = rep.fits.get(final_name, base_fit)
-    rng = np.random.default_rng(seed)
-
-    def build(fit) -> ShearBuilding:
-        iso = Isolator(fit.spec.name, fit.params)
-        if isinstance(sup, ShearBuilding):
-            from dataclasses import replace
-
-            return replace(sup, isolator=iso)
-        return sup.building(iso)
-
-    pick = np.sort(rng.choice(base_fit.P.shape[0], size=n_draws, replace=False))
-    seq = [by_name[n] for n in order]
-    before = predict_sequence(build(base_fit), base_fit.P[pick], seq, pad_s=pad_s, progress=progress)
-    if final_fit is base_fit:
-        after = before
-    else:
-        pick_f = np.sort(rng.choice(final_fit.P.shape[0], size=n_draws, replace=False))
-        after = predict_sequence(build(final_fit), final_fit.P[pick_f], seq, pad_s=pad_s, progress=progress)
-    # every candidate's optimum in the building (one analysis each): does the isolation-level
-    # ranking carry to the building's held-out channels?
+    base_fit = rep.fits[model.name]
+    final_fit = base_fit
+    if rep.combination:
+        final_fit = rep.fits.get(model.augment(list(rep.combination)).name, base_fit)
+    before = building_prediction(base_fit, data_of, order)
+    after = before if final_fit is base_fit else building_prediction(final_fit, data_of, order)
     check_rows = []
-    ho_seq = [n for n in order if n in ho_names]
     if ho_seq:
-        cands = [("baseline", base_fit)] + [(e.effect, rep.fits[e.law]) for e in rep.ranking
-                                            if e.law in rep.fits]
-        for label, fit in cands:
-            try:
-                pm = predict_sequence(build(fit), np.asarray(fit.inner.p_opt)[None, :], seq, pad_s=pad_s)
-                row = pm.nrmse(ho_seq)
-            except NUMERICAL_ERRORS as exc:
-                notes.append(f"building check of {fit.name}: {type(exc).__name__}: {str(exc)[:200]}")
-                row = {c: math.nan for c in CHANNELS}
+        cands_fit = [("baseline", base_fit)] + [(e.effect, rep.fits[e.law]) for e in rep.ranking
+                                                if e.law in rep.fits]
+        for label, fit in cands_fit:
+            row = {}
+            for c in CHANNELS:
+                m_all, p_all, ok = [], [], True
+                for h, d in zip(ho_seq, ho_data):
+                    st, out = fit.model.simulate(fit.x_opt, d)
+                    if st != 0:
+                        ok = False
+                        break
+                    m_all.append(d.measured(h)[c])
+                    p_all.append(out[h][c])
+                row[c] = float(nrmse(np.concatenate(m_all), np.concatenate(p_all))) if ok else math.nan
             check_rows.append({"effect": label, "law": fit.name, **row})
     building_check = pd.DataFrame(check_rows)
-    seconds["building"] = _time.perf_counter() - t0
-    cal_order = [n for n in order if n in cal_names]
-    ho_order = [n for n in order if n in ho_names]
-    gap_before = {"calibration": before.nrmse(cal_order),
-                  "holdout": before.nrmse(ho_order) if ho_order else None}
-    gap_after = {"calibration": after.nrmse(cal_order),
-                 "holdout": after.nrmse(ho_order) if ho_order else None}
-    err_after = after.residual_sd(cal_order)
-    err_before = before.residual_sd(cal_order)
-    cov = after.coverage(ho_order, err_after, seed=seed) if ho_order else {}
-    cov_p = after.coverage(ho_order) if ho_order else {}
-    cov_b = before.coverage(ho_order, err_before, seed=seed) if ho_order else {}
-    where = residual_table(after, ho_order, cal_peak) if ho_order else pd.DataFrame()
+    # the comparison row: the loop fit's law in the identified building (no output error)
+    loop_row: dict = {"law": loop.name, "params": {k: _num(v) for k, v in loop.params.items()}}
+    lm = BuildingModel(base_law, sup, cal, scales, draws=draws, loop_fit=loop, a_ref=a_ref)
+    x_loop = np.array([{**loop.params, "k_scale": 1.0, "zeta": lm.sup.zeta}.get(n, 0.0)
+                       for n in lm.layout.names])
+    for part, runs_ in (("calibration", cal_seq), ("holdout", ho_seq)):
+        vals = {}
+        try:
+            outs = {r: lm.simulate(x_loop, data_of[r]) for r in runs_}
+            if runs_ and all(st == 0 for st, _ in outs.values()):
+                for c in CHANNELS:
+                    vals[c] = float(nrmse(np.concatenate([data_of[r].measured(r)[c] for r in runs_]),
+                                          np.concatenate([outs[r][1][r][c] for r in runs_])))
+        except NUMERICAL_ERRORS as exc:
+            notes.append(f"loop-fit comparison: {type(exc).__name__}: {exc}")
+        loop_row[part] = vals or None
+    seconds["predictions"] = _time.perf_counter() - t0
+    gap_before = {"calibration": before.nrmse(cal_seq), "holdout": before.nrmse(ho_seq) if ho_seq else None}
+    gap_after = {"calibration": after.nrmse(cal_seq), "holdout": after.nrmse(ho_seq) if ho_seq else None}
+    pooled = _pooled(after, ho_seq) if ho_seq else {}
+    cov = {c: v["coverage"] for c, v in pooled.items()}
+    bw = {c: v["band_width"] for c, v in pooled.items()}
+    cov_b = {c: v["coverage"] for c, v in _pooled(before, ho_seq).items()} if ho_seq else {}
+    cov_p = {}
+    if ho_seq:
+        for c in CHANNELS:
+            inside = []
+            for r in ho_seq:
+                lo, hi = np.quantile(after.draws[r][c], [0.025, 0.975], axis=0)
+                m = after.measured[r][c]
+                inside.append((m >= lo) & (m <= hi))
+            cov_p[c] = float(np.mean(np.concatenate(inside)))
+    err_sd = {c: float(final_fit.sigma_c[c]) * scales[c] for c in CHANNELS}
+    where = residual_table(after, ho_seq, cal_peak) if ho_seq else pd.DataFrame()
+    runs_metrics = {r: run_metrics(after, r) for r in order}
     for p in ((before,) if after is before else (before, after)):
         if p.n_failed:
             notes.append(f"{p.n_failed} of {p.n_draws} building analyses with {p.law} failed "
-                         f"(left out of the bands); first: {p.failures[0]}")
+                         f"(left out of the bands)")
     notes.extend(rep.notes)
+    params = final_fit.params
+    iso = Isolator(final_fit.model.spec.name, final_fit.law_params)
+    if isinstance(sup, ShearBuilding):
+        from dataclasses import replace
+
+        final_building = replace(sup, isolator=iso)
+    else:
+        final_building = sup.building(iso)
+    from dataclasses import replace as _replace
+
+    k_fin = tuple(np.asarray(final_building.story_stiffness) * params["k_scale"])
+    final_building = _replace(final_building, story_stiffness=k_fin, damping_ratio=float(params["zeta"]))
     return ShakeTableGap(
-        law=rep.law, final_law=final_fit.name,
-        diagnosis=rep.verdict or rep.diagnosis, combination=tuple(rep.combination),
-        calibrate=tuple(cal_order), holdout=tuple(ho_order), order=tuple(order), rate_hz=float(rate_hz),
-        report=rep, law_scores=law_scores, identified_on=src, building=build(final_fit), before=before,
-        after=after, gap_before=gap_before, gap_after=gap_after, coverage=cov, coverage_parameter_band=cov_p,
-        coverage_before=cov_b, error_sd=err_after, extrapolation=extrapolation, calibrated_peak=cal_peak,
-        where=where, building_check=building_check, notes=tuple(notes),
-        elapsed=_time.perf_counter() - t_start, seconds=seconds)
+        law=base_law, final_law=final_fit.name, diagnosis=rep.verdict or rep.diagnosis,
+        combination=tuple(rep.combination), calibrate=tuple(cal_seq), holdout=tuple(ho_seq),
+        order=tuple(order),
+        rate_hz=float(rate_hz), report=rep, law_scores=law_scores, identified_on=src, building=final_building,
+        before=before, after=after, gap_before=gap_before, gap_after=gap_after, coverage=cov,
+        coverage_parameter_band=cov_p, coverage_before=cov_b, error_sd=err_sd, extrapolation=extrapolation,
+        calibrated_peak=cal_peak, where=where, building_check=building_check, notes=tuple(notes),
+        elapsed=_time.perf_counter() - t_start, seconds=seconds, runs=runs_metrics, band_width=bw,
+        loop_fit=loop_row, final_fit=final_fit, base_fit=base_fit,
+        cpu_seconds=_time.process_time() - c_start)

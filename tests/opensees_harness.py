@@ -13,6 +13,9 @@ LoadControl 1.0, so analysis step k lands exactly on pseudo-time k and imposes `
 * 3-D (elastomeric_x, hdr): orientation ``0 0 1 1 0 0`` makes the basic shear ``+u_X``; the
   force is ``+F_X``.  ElastomericX receives all 29 arguments, HDR all 32.
 
+The element and its argument list are the law's (``LawSpec.opensees``), as in the exported
+command (:func:`rrfrei.calibration.results.opensees_command`).
+
 Use :func:`element_force` (one ``analyze(1)`` per sample, reads ``eleResponse``) in tests and
 :func:`element_force_recorder` (one ``analyze(n)`` call, element recorder to a file: openseespy's
 fastest path) in benchmarks.  Law parameters are the rrfrei ones (kN, m).
@@ -27,35 +30,23 @@ import tempfile
 
 import numpy as np
 
-AXIAL_K = 1.0e6  # kN/m, elastic axial (and rotational) stiffness of the 2-D bearings
-KBULK = 2.0e6  # kN/m^2, rubber bulk modulus (enters only vertical terms)
-TS = 0.001  # m, steel shim thickness (vertical terms only)
-HDR_GEOMETRY = {"gr": 500.0, "d1": 0.0, "d2": 0.3, "tr": 0.005, "n": 20}  # vertical terms only
+from rrfrei.laws import get, opensees_laws
 
-TWO_D = ("plasticity", "bouc_wen")
-THREE_D = ("elastomeric_x", "hdr")
+AXIAL_K = 1.0e6  # kN/m, elastic axial (and rotational) stiffness of the 2-D bearings
+ORIENT = {2: [0, 1, 0, -1, 0, 0], 3: [0, 0, 1, 1, 0, 0]}  # see the module docstring
+
+TWO_D = tuple(n for n in opensees_laws() if 2 in get(n).opensees.dims)
+THREE_D = tuple(n for n in opensees_laws() if 2 not in get(n).opensees.dims)
 
 
 def _element_args(law: str, p: dict) -> list:
-    if law == "plasticity":
-        return ["elastomericBearingPlasticity", 1, 1, 2, p["k_init"], p["qd"], p["alpha1"],
-                p["alpha2"], p["mu"], "-P", 1, "-Mz", 2, "-orient", 0, 1, 0, -1, 0, 0]
-    if law == "bouc_wen":
-        return ["elastomericBearingBoucWen", 1, 1, 2, p["k_init"], p["qd"], p["alpha1"],
-                p["alpha2"], p["mu"], p["eta"], p["beta"], p["gamma"], "-P", 1, "-Mz", 2,
-                "-orient", 0, 1, 0, -1, 0, 0]
-    if law == "elastomeric_x":
-        # Fy alpha Gr Kbulk D1 D2 ts tr n | x1 x2 x3 y1 y2 y3 | kc PhiM ac sDratio m cd tc tag1-4
-        return ["ElastomericX", 1, 1, 2, p["fy"], p["alpha"], p["gr"], KBULK, p.get("d1", 0.0),
-                p["d2"], TS, p["tr"], float(p["n"]), 0, 0, 1, 1, 0, 0,
-                10.0, 0.5, 1.0, 0.5, 0.0, p.get("cd", 0.0), p.get("tc", 0.0), 0, 0, 0, 0]
-    if law == "hdr":
-        g = HDR_GEOMETRY
-        # Gr Kbulk D1 D2 ts tr n a1..c4 | x1..y3 | kc PhiM ac sDratio m tc
-        return ["HDR", 1, 1, 2, g["gr"], KBULK, g["d1"], g["d2"], TS, g["tr"], float(g["n"]),
-                p["a1"], p["a2"], p["a3"], p["b1"], p["b2"], p["b3"], p["c1"], p["c2"], p["c3"],
-                p["c4"], 0, 0, 1, 1, 0, 0, 10.0, 0.5, 1.0, 0.5, 0.0, 0.0]
-    raise ValueError(f"no OpenSees element for law {law!r}")
+    """``ops.element`` arguments of the law's OpenSees element (the law's spec,
+    :meth:`rrfrei.laws.LawSpec.opensees_args`): 2-D where OpenSees has it, else 3-D."""
+    spec = get(law)
+    if spec.opensees is None:
+        raise ValueError(f"no OpenSees element for law {law!r}")
+    ndm = 2 if law in TWO_D else 3
+    return [spec.opensees_element, 1, 1, 2, *spec.opensees_args(p, ndm=ndm, orient=ORIENT[ndm])]
 
 
 def _build(ops, law: str, params: dict, disp: np.ndarray) -> tuple[int, float]:

@@ -19,23 +19,20 @@ import tempfile
 
 import numpy as np
 
-from tests.opensees_harness import AXIAL_K, _CaptureStderr, _element_args, spurious_cut, z_floor
+from rrfrei.laws import plan
+from tests.opensees_harness import AXIAL_K, _CaptureStderr, spurious_cut, z_floor
 
 ORIENT = [0, 0, 1, 1, 0, 0]
-PLAN_LAWS = ("plasticity", "bouc_wen", "elastomeric_x", "hdr")
+PLAN_LAWS = tuple(n for n in plan.names() if plan.get(n).opensees_element)
 
 
 def _plan_element_args(law: str, p: dict) -> list:
-    if law == "plasticity":
-        return ["elastomericBearingPlasticity", 1, 1, 2, p["k_init"], p["qd"], p["alpha1"],
-                p["alpha2"], p["mu"], "-P", 1, "-T", 2, "-My", 3, "-Mz", 4, "-orient", *ORIENT]
-    if law == "bouc_wen":
-        return ["elastomericBearingBoucWen", 1, 1, 2, p["k_init"], p["qd"], p["alpha1"],
-                p["alpha2"], p["mu"], p["eta"], p["beta"], p["gamma"], "-P", 1, "-T", 2,
-                "-My", 3, "-Mz", 4, "-orient", *ORIENT]
-    if law in ("elastomeric_x", "hdr"):
-        return _element_args(law, p)  # already 3-D, with this orientation
-    raise ValueError(f"no OpenSees 3-D element for law {law!r}")
+    """``ops.element`` arguments of the plan law's 3-D OpenSees element (the law's spec,
+    :meth:`rrfrei.laws.plan.PlanLawSpec.opensees_args`; material tags 1-4)."""
+    spec = plan.get(law)
+    if not spec.opensees_element:
+        raise ValueError(f"no OpenSees 3-D element for law {law!r}")
+    return [spec.opensees_element, 1, 1, 2, *spec.opensees_args(p, orient=ORIENT)]
 
 
 def _build(ops, law: str, params: dict, disp: np.ndarray) -> None:

@@ -81,7 +81,7 @@ def test_editing_a_law_reaches_callers_in_other_files_and_reverting_restores_it(
     warm = _run(tree)  # from the cache this time
     assert warm["simulate"] == before["simulate"] == pytest.approx(1000.0 * 1e-4)
     assert warm["cache"] == before["cache"]
-    assert Path(before["cache"]).is_relative_to(tree), "the cache lives with the checkout"
+    assert Path(before["cache"]).is_relative_to(tree / "xdg"), "the cache lives in the user's cache"
 
     law.write_text(source.replace(EDIT_FROM, EDIT_TO))
     edited = _run(tree)
@@ -132,18 +132,23 @@ def test_editing_a_law_outside_the_packages_reaches_its_instances_and_reverting_
     assert _run(tree, "toy_bilinear") == before
 
 
-def test_a_user_set_numba_cache_dir_is_respected(tmp_path):
+def test_a_user_set_numba_cache_dir_holds_the_kernel_cache_still_keyed_on_the_sources(tmp_path):
+    """``NUMBA_CACHE_DIR`` chooses where the cache lives (``<it>/rrfrei/numba/k-<hash>``); the
+    folder is still named after the kernel sources, so it never goes stale, and neither Numba's
+    setting nor the environment is changed."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "mine"))
     env.pop("_RRFREI_NUMBA_CACHE", None)
     out = subprocess.run(
         [sys.executable, "-c", "import rrfrei, os; from numba.core import config; "
-         "print(rrfrei._jit_cache.CACHE_DIR, config.CACHE_DIR)"],
+         "print(rrfrei._jit_cache.CACHE_DIR, config.CACHE_DIR, os.environ['NUMBA_CACHE_DIR'])"],
         env=env, capture_output=True, text=True, timeout=120, cwd=ROOT,
     )
     assert out.returncode == 0, out.stderr
-    ours, numba_dir = out.stdout.split()
-    assert ours == "None"
-    assert numba_dir == str(tmp_path / "mine")
+    ours, numba_dir, env_dir = out.stdout.split()
+    from rrfrei import _jit_cache
+
+    assert Path(ours) == tmp_path / "mine" / "rrfrei" / "numba" / f"k-{_jit_cache.source_hash(ROOT)}"
+    assert numba_dir == env_dir == str(tmp_path / "mine")
 
 
 def test_old_cache_folders_go_but_a_running_process_keeps_its_own(tmp_path):

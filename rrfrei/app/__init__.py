@@ -4,7 +4,8 @@ Layers of the project, bottom to top (imports point down only; ``tests/test_laye
 each layer in a fresh interpreter and checks that nothing above it was loaded):
 
 0. ``rrfrei._jit_cache`` (and the ``rrfrei`` package root, which only sets it up): the Numba
-   cache keyed on the kernel sources, imported first by every package.
+   cache locator (a private per-user folder keyed on the kernel sources), imported first by
+   every package.
 1. ``ground_motions``: records, spectra, scaling.
 2. ``rrfrei`` core: ``laws``, ``simulate``, ``io``, ``energy``, ``protocols``, ``calibration``,
    ``gap`` (the gap engine), ``budget``, ``errors``, ``_inputs``.

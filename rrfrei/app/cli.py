@@ -13,11 +13,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rrfrei.app.commands import calibrate, compare, demo, gap, gap_validate, propagate, shake_table
+from rrfrei.app.commands import calibrate, compare, demo, gap, gap_validate, kernels, propagate, shake_table
 from rrfrei.errors import NUMERICAL_ERRORS
 
 #: Command modules, in the order they appear in --help.
-COMMAND_MODULES = (calibrate, compare, gap, gap_validate, propagate, shake_table, demo)
+COMMAND_MODULES = (calibrate, compare, gap, gap_validate, propagate, shake_table, demo, kernels)
 #: Their names (the module names; ``gap_validate`` is the ``gap-validate`` command, ``shake_table``
 #: the ``shake-table`` command).
 COMMANDS = tuple(m.__name__.rpartition(".")[2] for m in COMMAND_MODULES)

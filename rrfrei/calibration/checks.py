@@ -87,6 +87,9 @@ class Prediction:
     cumulative_map: np.ndarray
     asce: pd.DataFrame
     n_draws: int
+    extrapolation: tuple = ()
+    """Where ``test`` leaves the calibration test's displacement range
+    (:class:`rrfrei.extrapolation.Extrapolation` records; each also issued as a warning)."""
     failed_draws: int = 0
     meta: dict = field(default_factory=dict)
 
@@ -95,6 +98,7 @@ class Prediction:
         e_t = float(self.cycles["energy_test"].sum()) if len(self.cycles) else float("nan")
         e_m = float(self.cycles["energy_map"].sum()) if len(self.cycles) else float("nan")
         return {
+            "extrapolation": [e.as_dict() for e in self.extrapolation],
             "nrmse": self.nrmse, "nrmse_map": self.nrmse_map, "coverage": self.coverage,
             "coverage_param": self.coverage_param, "energy_test": e_t, "energy_map": e_m,
             "n_draws": self.n_draws, "failed_draws": self.failed_draws,
@@ -116,6 +120,7 @@ def predict(calibration, test: ShearTest, *, n: int = 200, seed: int = 0, level:
     from rrfrei.calibration.likelihood import law_forces
     from rrfrei.calibration.noise import noise_model
     from rrfrei.calibration.results import _as_calibration
+    from rrfrei.extrapolation import beyond, warn
 
     if not 0 < level < 1:
         raise ValueError(f"level must be in (0, 1), got {level}")
@@ -146,7 +151,11 @@ def predict(calibration, test: ShearTest, *, n: int = 200, seed: int = 0, level:
          asce_7_22_checks(_cycle_metrics(test.disp, fmap)).assign(source="MAP")],
         ignore_index=True,
     )
+    ext = tuple(beyond(test.name, "displacement", test.disp, (cal.test.disp.min(), cal.test.disp.max()),
+                       unit="m", what=f"the displacement range of the calibration test {cal.test.name!r}"))
+    warn(ext)
     return Prediction(
+        extrapolation=ext,
         law=cal.law, test=test, mean=mean, map=fmap, lower=lo, upper=hi, lower_param=lo_p,
         upper_param=hi_p, coverage=coverage(obs, lo, hi), coverage_param=coverage(obs, lo_p, hi_p),
         nrmse=nrmse(obs, mean), nrmse_map=nrmse(obs, fmap), cycles=cyc,

@@ -246,53 +246,37 @@ class Calibration:
 # ---------------------------------------------------------------------------------------------
 # export to OpenSees
 # ---------------------------------------------------------------------------------------------
-#: Vertical properties the shear laws do not use, written into the 3-D element commands:
-#: rubber bulk modulus [kN/m^2], steel shim thickness [m], and ElastomericX's / HDR's
-#: cavitation and buckling parameters (kc, PhiM, ac, sDratio, m) at OpenSees' documented defaults.
-EXPORT_VERTICAL = {"kbulk": 2.0e6, "ts": 0.001, "kc": 10.0, "phi_m": 0.5, "ac": 1.0,
-                   "sd_ratio": 0.5, "m": 0.0}
-#: HDR's geometry enters only its vertical terms (the shear law uses a1..c4 directly).
-EXPORT_HDR_GEOMETRY = {"gr": 500.0, "d1": 0.0, "d2": 0.3, "tr": 0.005, "n": 20.0}
+#: Orientation of the exported elements: 2-D, local x (axial) along global Y and local y
+#: (shear) along global +X; 3-D, local x along global Z and local y along global +X.
+EXPORT_ORIENT = {2: (0.0, 1.0, 0.0, 1.0, 0.0, 0.0), 3: (0.0, 0.0, 1.0, 1.0, 0.0, 0.0)}
 
 
 def opensees_command(spec: LawSpec, params: Mapping[str, float], tag: int = 1, i_node: int = 1,
                      j_node: int = 2) -> str:
     """The ``ops.element(...)`` call that builds law ``spec`` at ``params`` in openseespy 3.7.1.
 
-    Numbers are written with ``repr`` (full precision: the element reproduces
-    :func:`rrfrei.simulate_force` to rounding).  Models and orientation:
+    The element and its arguments are the law's (``LawSpec.opensees``,
+    :meth:`~rrfrei.laws.LawSpec.opensees_args`).  Numbers are written with ``repr`` (full
+    precision: the element reproduces :func:`rrfrei.simulate_force` to rounding).  Models and
+    orientation (:data:`EXPORT_ORIENT`):
 
     - ``plasticity`` / ``bouc_wen``: 2-D model (``-ndm 2 -ndf 3``), zero-length element; axial and
       moment materials are tags 1 and 2 (``-P 1 -Mz 2``, the user's); ``-orient 0 1 0 1 0 0``
       puts local x (axial) along global Y and local y (shear) along global +X.
     - ``elastomeric_x`` / ``HDR``: 3-D only in OpenSees (``-ndm 3 -ndf 6``); all positional
       arguments are given (ElastomericX 29, HDR 32, as ``OPS_ElastomericX`` / ``OPS_HDR`` read
-      them): geometry from the calibration (HDR: :data:`EXPORT_HDR_GEOMETRY`, vertical terms only),
-      vertical properties :data:`EXPORT_VERTICAL`; orientation ``0 0 1 1 0 0`` (local x along
-      global Z, shear along global +X).
+      them), the vertical ones at fixed values (:data:`rrfrei.laws.registry.OPENSEES_VERTICAL`;
+      HDR's geometry, vertical terms only: :data:`rrfrei.laws.hdr.OPENSEES_GEOMETRY`);
+      orientation ``0 0 1 1 0 0`` (local x along global Z, shear along global +X).
     """
-    p = {k: float(v) for k, v in params.items()}
-    v = EXPORT_VERTICAL
-    name = spec.opensees_element
-    if spec.name in ("plasticity", "bouc_wen"):
-        args = [p[n] for n in spec.param_names]
-        tail = ["-P", 1, "-Mz", 2, "-orient", 0.0, 1.0, 0.0, 1.0, 0.0, 0.0]
-    elif spec.name == "elastomeric_x":
-        args = [p["fy"], p["alpha"], p["gr"], v["kbulk"], p.get("d1", 0.0), p["d2"], v["ts"], p["tr"],
-                p["n"], 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, v["kc"], v["phi_m"], v["ac"], v["sd_ratio"],
-                v["m"], p.get("cd", 0.0), p.get("tc", 0.0), 0, 0, 0, 0]
-        tail = []
-    elif spec.name == "hdr":
-        g = EXPORT_HDR_GEOMETRY
-        args = [g["gr"], v["kbulk"], g["d1"], g["d2"], v["ts"], g["tr"], g["n"],
-                *(p[n] for n in ("a1", "a2", "a3", "b1", "b2", "b3", "c1", "c2", "c3", "c4")),
-                0.0, 0.0, 1.0, 1.0, 0.0, 0.0, v["kc"], v["phi_m"], v["ac"], v["sd_ratio"], v["m"], 0.0]
-        tail = []
-    else:
+    if spec.opensees is None:
         raise ValueError(f"law {spec.name!r} has no OpenSees element export")
+    ndm = min(spec.opensees.dims)
+    args = spec.opensees_args({k: float(v) for k, v in params.items()}, ndm=ndm,
+                              orient=EXPORT_ORIENT[ndm])
     text = ", ".join(repr(a) if isinstance(a, str) else repr(float(a)) if isinstance(a, float) else str(a)
-                     for a in [*args, *tail])
-    return f"ops.element({name!r}, {int(tag)}, {int(i_node)}, {int(j_node)}, {text})"
+                     for a in args)
+    return f"ops.element({spec.opensees_element!r}, {int(tag)}, {int(i_node)}, {int(j_node)}, {text})"
 
 
 # ---------------------------------------------------------------------------------------------

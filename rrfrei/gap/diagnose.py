@@ -86,7 +86,8 @@ from rrfrei.gap.model import FitResult, GapModel, IsolatorModel, velocity, white
 from rrfrei.gap.residuals import cycle_levels, energy_error, gap, segment_table, systematic_gap
 from rrfrei.io import ShearTest, read_test
 
-__all__ = ["EffectScore", "Metrics", "GapReport", "diagnose", "diagnose_gap", "CONFOUNDED"]
+__all__ = ["EffectScore", "Metrics", "GapReport", "diagnose", "diagnose_gap", "CONFOUNDED", "Checkpoint",
+           "loco"]
 
 CONFOUNDED = ("degradation", "mullins", "rollover", "slip")
 """Effects that a growing-amplitude protocol cannot tell apart on its own."""
@@ -247,7 +248,7 @@ class GapReport:
 
 
 # ---------------------------------------------------------------------------------------------
-def _loco(ll: np.ndarray, groups: np.ndarray) -> np.ndarray:
+def loco(ll: np.ndarray, groups: np.ndarray) -> np.ndarray:
     """PSIS leave-one-group-out elpd of every group from pointwise log-lik (S, n)."""
     from arviz import psislw
 
@@ -259,6 +260,9 @@ def _loco(ll: np.ndarray, groups: np.ndarray) -> np.ndarray:
         warnings.simplefilter("ignore")
         lw, _ = psislw(-sums.copy())
     return logsumexp(lw + sums, axis=1)
+
+
+_loco = loco  # the name the engine used before it was public
 
 
 def _lppd_groups(ll: np.ndarray, groups: np.ndarray) -> np.ndarray:
@@ -500,7 +504,7 @@ def _screen_context(model: GapModel, data, fit: FitResult) -> ScreenContext | No
                          has_time=bool(data.has_time))
 
 
-class _Checkpoint:
+class Checkpoint:
     """Finished fits saved as ``.npz`` in a folder, keyed by data, model settings, seed and step."""
 
     def __init__(self, folder, model: GapModel, data, seed: int) -> None:
@@ -543,6 +547,9 @@ class _Checkpoint:
             os.replace(tmp, path)  # atomic: an interrupted run never leaves a half-written fit
         except OSError as exc:
             self.error = f"checkpoint not written ({type(exc).__name__}: {exc})"
+
+
+_Checkpoint = Checkpoint  # the name the engine used before it was public
 
 
 def _fit(model: GapModel, data, budget: TimeBudget, **kw) -> FitResult:
@@ -625,7 +632,8 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
 
 def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combine, max_combination,
               progress, time_budget, checkpoint) -> GapReport:
-    known = catalogue()
+    # a model may offer candidates of its own besides the catalogue's (the building's system effects)
+    known = list(getattr(model, "candidate_effects", None) or catalogue())
     effects = list(known) if effects is None else list(effects)
     for e in effects:
         if e not in known:

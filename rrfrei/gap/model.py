@@ -376,6 +376,15 @@ class IsolatorModel(GapModel):
     def variants(self, effect: str) -> tuple[str, ...]:
         return tuple(v.name for v in catalogue()[effect].variants)
 
+    def effect_hints(self, effect: str):
+        """The catalogue's fitting hints of ``effect`` (scales, box, starts) as this model fits it
+        (its variant, if any): public for other models that fit the same law (the building)."""
+        return self._info(effect)
+
+    def free_parameters(self, data: ShearTest) -> tuple[tuple[str, ...], dict[str, float]]:
+        """(fitted parameter names, fixed values) of this law on ``data`` (see :meth:`fit`)."""
+        return self._free(data)
+
     @property
     def name(self) -> str:  # type: ignore[override]
         return self.spec.name

@@ -11,6 +11,7 @@ the modules are found on the first lookup, so adding a law edits no other file.
 from rrfrei.laws.registry import (
     STATUS_MESSAGES,
     LawSpec,
+    OpenSeesElement,
     ParamSpec,
     Prior,
     get,
@@ -23,6 +24,7 @@ __all__ = [
     "OPENSEES_LAWS",
     "STATUS_MESSAGES",
     "LawSpec",
+    "OpenSeesElement",
     "ParamSpec",
     "Prior",
     "get",

@@ -128,7 +128,7 @@ from numba import njit
 
 from rrfrei.laws._util import commit, increment, powabs, sgn
 from rrfrei.laws.plasticity import PARAMS as _PLASTICITY_PARAMS
-from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
+from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, elastomeric_bearing, register
 
 A = 1.0
 MAX_ITER = 25
@@ -839,7 +839,7 @@ SPEC = register(
         ),
         state_size=5,
         description="OpenSees ElastomericBearingBoucWen: smooth Bouc-Wen hysteresis (A = 1).",
-        opensees_element="elastomericBearingBoucWen",
+        opensees=elastomeric_bearing("elastomericBearingBoucWen"),
         check=_check,
     )
 )

@@ -43,7 +43,7 @@ from numba import njit
 
 from rrfrei.laws._util import sgn
 from rrfrei.laws.bouc_wen import STATUS_ROBUST, solve_robust
-from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
+from rrfrei.laws.registry import OPENSEES_VERTICAL, LawSpec, OpenSeesElement, ParamSpec, Prior, register
 
 PI_OPENSEES = 3.14159
 """The ``PI`` macro of ElastomericX.cpp / HDR.cpp (``3.14159L``), used instead of math.pi."""
@@ -143,6 +143,16 @@ def step_robust(p, sc, u, v, dt, st):
     return q, kt, STATUS_ROBUST
 
 
+def opensees_args(p, ndm, orient, materials=None) -> list:
+    """OpenSees' 29 positional ElastomericX arguments after the tag and nodes (``OPS_ElastomericX``):
+    Fy alpha Gr Kbulk D1 D2 ts tr n | x1 x2 x3 y1 y2 y3 | kc PhiM ac sDratio m cd tc tag1-4
+    (vertical terms :data:`~rrfrei.laws.registry.OPENSEES_VERTICAL`, tags 0: the defaults)."""
+    v = OPENSEES_VERTICAL
+    return [p["fy"], p["alpha"], p["gr"], v["kbulk"], p["d1"], p["d2"], v["ts"], p["tr"], p["n"],
+            *orient, v["kc"], v["phi_m"], v["ac"], v["sd_ratio"], v["m"], p["cd"], p["tc"],
+            0, 0, 0, 0]
+
+
 SPEC = register(
     LawSpec(
         name="elastomeric_x",
@@ -165,7 +175,7 @@ SPEC = register(
         ),
         state_size=4,
         description="OpenSees ElastomericX (Kumar): Park-Wen hysteresis plus elastic rubber.",
-        opensees_element="ElastomericX",
+        opensees=OpenSeesElement("ElastomericX", opensees_args, dims=(3,)),
         uses_velocity=True,
     )
 )

@@ -41,7 +41,7 @@ import math
 
 from numba import njit
 
-from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
+from rrfrei.laws.registry import OPENSEES_VERTICAL, LawSpec, OpenSeesElement, ParamSpec, Prior, register
 
 DBL_EPSILON = 2.220446049250313e-16
 
@@ -136,6 +136,21 @@ def step(p, sc, u, v, dt, st):
     return f1 + f2, k1 + k2, 0
 
 
+OPENSEES_GEOMETRY = {"gr": 500.0, "d1": 0.0, "d2": 0.3, "tr": 0.005, "n": 20.0}
+"""HDR's geometry [kN/m^2, m, -] written into the OpenSees element: it enters only the vertical
+terms (the shear law uses a1..c4 directly)."""
+
+
+def opensees_args(p, ndm, orient, materials=None) -> list:
+    """OpenSees' 32 positional HDR arguments after the tag and nodes (``OPS_HDR``):
+    Gr Kbulk D1 D2 ts tr n a1..c4 | x1..y3 | kc PhiM ac sDratio m tc (geometry
+    :data:`OPENSEES_GEOMETRY`, vertical terms :data:`~rrfrei.laws.registry.OPENSEES_VERTICAL`)."""
+    g, v = OPENSEES_GEOMETRY, OPENSEES_VERTICAL
+    return [g["gr"], v["kbulk"], g["d1"], g["d2"], v["ts"], g["tr"], g["n"],
+            *(p[n] for n in ("a1", "a2", "a3", "b1", "b2", "b3", "c1", "c2", "c3", "c4")),
+            *orient, v["kc"], v["phi_m"], v["ac"], v["sd_ratio"], v["m"], 0.0]
+
+
 SPEC = register(
     LawSpec(
         name="hdr",
@@ -166,6 +181,6 @@ SPEC = register(
         local_iteration=False,
         description="OpenSees HDR (Grant et al. 2004): elastic + bounding-surface hysteresis "
         "with scragging and Mullins damage.",
-        opensees_element="HDR",
+        opensees=OpenSeesElement("HDR", opensees_args, dims=(3,)),
     )
 )

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from rrfrei.laws._util import powabs, sgn
-from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, register
+from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, elastomeric_bearing, register
 
 
 @njit(cache=True, error_model="numpy")
@@ -77,7 +77,7 @@ SPEC = register(
         local_iteration=False,
         state_size=1,
         description="OpenSees ElastomericBearingPlasticity: elastic-plastic with hardening.",
-        opensees_element="elastomericBearingPlasticity",
+        opensees=elastomeric_bearing("elastomericBearingPlasticity"),
         check=_check,
     )
 )

@@ -31,7 +31,7 @@ these fields (:mod:`rrfrei.laws.specialise`), so only the laws a command uses ar
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -150,6 +150,59 @@ class ParamSpec:
 
 
 @dataclass(frozen=True)
+class OpenSeesElement:
+    """The OpenSees element a law ports, and its argument list (openseespy 3.7.1).
+
+    ``ops.element(name, tag, i_node, j_node, *args(p, ndm, orient, materials))`` builds the
+    element at the law's parameters, where
+
+    * ``p``         the law's full parameters (a mapping in ``LawSpec.param_names`` order; kN, m, s);
+    * ``ndm``       the model dimension, 2 (``-ndm 2 -ndf 3``) or 3 (``-ndm 3 -ndf 6``), one of
+      ``dims``;
+    * ``orient``    the six numbers of the element's orientation: local x (axial) then a vector
+      in the local x-y plane (local y is the shear direction of a unidirectional law), as given
+      (ints stay ints);
+    * ``materials`` the uniaxial material tags of the directions the shear law does not model
+      (``-P -Mz`` in 2-D, ``-P -T -My -Mz`` in 3-D), for the elements that take them.
+
+    Arguments that enter only the vertical, torsional or rotational response (bulk modulus,
+    shims, cavitation and buckling constants: :data:`OPENSEES_VERTICAL`) are written at fixed
+    values; they leave the shear force unchanged.
+    """
+
+    name: str
+    args: Callable[..., list] = field(compare=False, repr=False)
+    dims: tuple[int, ...] = (2, 3)
+
+
+#: Vertical properties the shear laws do not use, written into the 3-D element commands
+#: (ElastomericX, HDR): rubber bulk modulus [kN/m^2], steel shim thickness [m], and the
+#: cavitation and buckling parameters kc, PhiM, ac, sDratio, m at OpenSees' documented defaults.
+OPENSEES_VERTICAL = {"kbulk": 2.0e6, "ts": 0.001, "kc": 10.0, "phi_m": 0.5, "ac": 1.0,
+                     "sd_ratio": 0.5, "m": 0.0}
+
+
+def elastomeric_bearing(name: str) -> OpenSeesElement:
+    """An ``elastomericBearing*`` element of OpenSees (Plasticity, BoucWen), whose law takes
+    OpenSees' positional arguments as its parameters: all parameters in order, the material
+    flags (2-D ``-P -Mz``, 3-D ``-P -T -My -Mz``; default tags 1, 2, ...) and ``-orient``."""
+
+    def args(p: Mapping[str, float], ndm: int, orient: Sequence[float],
+             materials: Sequence[int] | None = None) -> list:
+        flags = ("-P", "-Mz") if ndm == 2 else ("-P", "-T", "-My", "-Mz")
+        tags = tuple(range(1, len(flags) + 1)) if materials is None else tuple(materials)
+        if len(tags) != len(flags):
+            raise ValueError(f"{name} in a {ndm}-D model takes {len(flags)} material tags "
+                             f"({' '.join(flags)}), got {len(tags)}")
+        out: list = list(p.values())
+        for flag, tag in zip(flags, tags):
+            out += [flag, tag]
+        return [*out, "-orient", *orient]
+
+    return OpenSeesElement(name, args)
+
+
+@dataclass(frozen=True)
 class LawSpec:
     """A shear law: its parameters, state size and kernels.
 
@@ -166,6 +219,8 @@ class LawSpec:
     check : optional callable taking the packed parameter array and raising ValueError for
         cross-parameter constraints.
     effects : names of the effects of an augmented law (:mod:`rrfrei.laws.effects`).
+    opensees : the OpenSees element the law ports and its argument list
+        (:class:`OpenSeesElement`), or None; read by :meth:`opensees_args`.
     """
 
     name: str
@@ -176,7 +231,7 @@ class LawSpec:
     step_robust: Callable | None = field(default=None, compare=False, repr=False)
     drive: Callable | None = field(default=None, compare=False, repr=False)
     drive_robust: Callable | None = field(default=None, compare=False, repr=False)
-    opensees_element: str = ""
+    opensees: OpenSeesElement | None = None
     uses_velocity: bool = False
     local_iteration: bool = True
     check: Callable[[np.ndarray], None] | None = field(default=None, compare=False, repr=False)
@@ -208,6 +263,31 @@ class LawSpec:
         if _REGISTRY.get(self.name) is self:
             return (get, (self.name,))
         return super().__reduce_ex__(protocol)
+
+    # --- OpenSees ------------------------------------------------------------------------
+    @property
+    def opensees_element(self) -> str:
+        """Name of the OpenSees element the law ports ("" for none)."""
+        return self.opensees.name if self.opensees is not None else ""
+
+    def opensees_args(self, params: Mapping[str, float] | np.ndarray | list | tuple, *,
+                      ndm: int, orient: Sequence[float],
+                      materials: Sequence[int] | None = None) -> list:
+        """Arguments of ``ops.element(self.opensees_element, tag, i_node, j_node, *args)``
+        that build the law at ``params`` (validated by :meth:`pack`; optional parameters take
+        their defaults) in a ``ndm``-dimensional model with orientation ``orient``
+        (:class:`OpenSeesElement`).  Raises ValueError for a law without an OpenSees element or
+        a model dimension the element does not exist in."""
+        if self.opensees is None:
+            raise ValueError(f"law {self.name!r} has no OpenSees element")
+        if ndm not in self.opensees.dims:
+            raise ValueError(
+                f"law {self.name!r}: OpenSees' {self.opensees.name} exists only in "
+                f"{' or '.join(f'{d}-D' for d in self.opensees.dims)} models, got ndm = {ndm!r}"
+            )
+        if len(orient) != 6:
+            raise ValueError(f"orient needs 6 numbers (local x, then local y), got {len(orient)}")
+        return self.opensees.args(self.as_dict(self.pack(params)), ndm, orient, materials)
 
     # --- names -------------------------------------------------------------------------
     @property
@@ -409,7 +489,7 @@ def get(name: str | LawSpec) -> LawSpec:
 
 def _listing_order(spec: LawSpec) -> tuple:
     """OpenSees laws first, then the others; simplest (fewest parameters) first, then by name."""
-    return (not spec.opensees_element, len(spec.params), spec.name)
+    return (spec.opensees is None, len(spec.params), spec.name)
 
 
 def names() -> tuple[str, ...]:
@@ -425,9 +505,9 @@ def names() -> tuple[str, ...]:
 
 
 def opensees_laws() -> tuple[str, ...]:
-    """Names of the base laws that port an OpenSees element (``opensees_element`` set), in
+    """Names of the base laws that port an OpenSees element (``opensees`` set), in
     :func:`names` order: the laws compared against openseespy."""
-    return tuple(n for n in names() if _REGISTRY[n].opensees_element)
+    return tuple(n for n in names() if _REGISTRY[n].opensees is not None)
 
 
 def __getattr__(attr: str):

@@ -24,15 +24,24 @@ Never stale
 The generated file is named by a hash of its whole text, which contains the template's source
 and a hash of the source file of every bound function.  An edit to the template or to a law
 module therefore gives a new file and a fresh Numba cache entry; an unchanged pair reuses the
-cached machine code across processes.  The files live in ``<numba cache>/generated/`` (see
-:mod:`rrfrei._jit_cache`), which is itself keyed on every kernel source of the packages.
+cached machine code across processes.  The files live in ``<kernel cache>/generated/``
+(:func:`generated_dir`, in the private per-user folder of :mod:`rrfrei._jit_cache`), which is
+itself keyed on every kernel source of the packages.
+
+Verified before it runs
+-----------------------
+A file already at the expected name is read once and executed only if the SHA-256 of those bytes
+matches the hash in its name; otherwise it is refused (a ``RuntimeWarning`` names it) and
+rewritten.  The module runs from the verified bytes, never from a second read or a ``.pyc``.
+:func:`kernel_files` (``rrfrei kernels LAW``) lists a law's generated files to read.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
-import importlib.util
+import importlib.machinery
 import inspect
 import math
 import os
@@ -40,14 +49,18 @@ import re
 import sys
 import tempfile
 import threading
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["bindings", "generated_dir", "history", "instantiate", "unbound"]
+__all__ = [
+    "bindings", "generated_dir", "history", "instantiate", "kernel_files", "unbound",
+]
 
 _LOCK = threading.RLock()  # re-entrant: an instance may instantiate while it imports
 _INSTANCES: dict[tuple, ModuleType] = {}
+_FILES: dict[str, dict[str, Path]] = {}  # key -> template -> instance file (this process)
 _PKG = "rrfrei._generated"
 
 
@@ -65,15 +78,59 @@ def unbound(slot: str):
 
 
 def generated_dir() -> Path:
-    """Folder of the generated instance files (inside the Numba cache folder in use)."""
-    base = os.environ.get("NUMBA_CACHE_DIR")
-    if not base:
-        from rrfrei import _jit_cache
+    """Folder of the generated instance files, created on first call (private, per user)."""
+    from rrfrei import _jit_cache
 
-        base = _jit_cache.CACHE_DIR or os.path.join(tempfile.gettempdir(), "rrfrei-numba")
-    path = Path(base) / "generated"
-    path.mkdir(parents=True, exist_ok=True)
+    path = _jit_cache.ensure_cache_dir() / "generated"
+    path.mkdir(exist_ok=True)
     return path
+
+
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()[:16]
+
+
+def _load_verified(path: Path, text: str, digest: str) -> bytes:
+    """The bytes of the instance file at ``path``: written atomically when missing, and when an
+    existing file's content does not hash to ``digest`` (refused with a warning, rewritten)."""
+    data = text.encode("utf-8")
+    try:
+        found = path.read_bytes()
+    except FileNotFoundError:
+        found = None
+    if found is not None:
+        if found == data:  # hence also hashes to ``digest``
+            return found
+        warnings.warn(
+            f"refused the generated kernel file {path}: its content does not match the hash "
+            f"{digest} in its name (changed after it was written); writing it again",
+            RuntimeWarning, stacklevel=3,
+        )
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)  # atomic: concurrent writers write the same bytes
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return data
+
+
+def _exec_instance(modname: str, path: Path, data: bytes) -> ModuleType:
+    """Run the verified bytes ``data`` as the module ``modname`` whose file is ``path``."""
+    module = ModuleType(modname)
+    module.__file__ = str(path)
+    module.__spec__ = importlib.machinery.ModuleSpec(modname, None, origin=str(path))
+    code = compile(data, str(path), "exec", dont_inherit=True)
+    sys.modules[modname] = module
+    try:
+        exec(code, module.__dict__)
+    except BaseException:
+        sys.modules.pop(modname, None)
+        raise
+    return module
 
 
 def _file_hash(path: str) -> str:
@@ -160,19 +217,12 @@ def instantiate(template: str, bindings: Mapping[str, object], key: str) -> Modu
             + "\n".join(lines)
             + "\n"
         )
-        digest = hashlib.sha256(text.encode()).hexdigest()[:16]
-        tag = re.sub(r"[^0-9A-Za-z_]", "_", f"{template.replace('.', '_')}__{key}")
+        digest = _digest(text.encode("utf-8"))
+        tag = _tag(template, key)
         modname = f"{_PKG}.{tag}_{digest}"
         path = generated_dir() / f"{tag}_{digest}.py"
-        if not path.exists():
-            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(text)
-            os.replace(tmp, path)  # atomic: concurrent writers write the same bytes
-        spec = importlib.util.spec_from_file_location(modname, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[modname] = module
-        spec.loader.exec_module(module)
+        module = _exec_instance(modname, path, _load_verified(path, text, digest))
+        _FILES.setdefault(key, {})[template] = path
         _INSTANCES[ident] = module
         return module
 
@@ -214,3 +264,59 @@ def history(spec, robust: bool = False):
 
 
 _DRIVERS: dict[tuple[int, bool], tuple[object, object]] = {}
+
+
+_HEADER = re.compile(r"^# Generated by rrfrei\.laws\.specialise from (?P<template>[\w.]+) for ")
+_NAME = re.compile(r"^(?P<tag>.+)_(?P<digest>[0-9a-f]{16})\.py$")
+
+
+def _key_tag(key: str) -> str:
+    return re.sub(r"[^0-9A-Za-z_]", "_", key)
+
+
+def _tag(template: str, key: str) -> str:
+    """The file-name stem of an instance, before its hash."""
+    return _key_tag(f"{template.replace('.', '_')}__{key}")
+
+
+def kernel_files(law, generate: bool = True) -> list[tuple[str, Path]]:
+    """The generated kernel files of a law: ``(template, path)`` pairs, sorted by template.
+
+    Parameters
+    ----------
+    law : a law name (``"plasticity"``, ``"bouc_wen+rate"``, ...) or its ``LawSpec``.
+    generate : first instantiate the law's whole-history drivers (:func:`history`), which every
+        command that simulates the law runs, so that they are listed even before any run.
+
+    Returns
+    -------
+    Every instance of a template bound to the law in the current kernel cache (the history
+    drivers, the batched likelihood of ``rrfrei calibrate``, the building kernels of the time
+    histories, the plan forms ``plan_<law>``, where they were generated), each verified against
+    the hash in its name; a file that fails the check is not listed (it is refused and rewritten
+    when it is next needed).  Open a path to read the exact kernel a command runs.
+    """
+    from rrfrei.laws import registry
+
+    spec = registry.get(law)
+    if generate:
+        history(spec)
+        history(spec, robust=True)
+    keys = (spec.name, f"plan_{spec.name}")
+    found: dict[Path, str] = {}
+    with _LOCK:
+        for key in keys:
+            for template, path in _FILES.get(key, {}).items():
+                found[path] = template
+    for path in generated_dir().glob("*.py"):
+        m = _NAME.match(path.name)
+        if m is None or path in found or not any(m["tag"].endswith(f"__{_key_tag(k)}") for k in keys):
+            continue
+        data = path.read_bytes()
+        head = _HEADER.match(data.decode("utf-8", "replace"))
+        if _digest(data) != m["digest"] or head is None:
+            continue  # not a verified instance: never listed as a kernel to read
+        template = head["template"]
+        if m["tag"] in {_tag(template, k) for k in keys}:
+            found[path] = template
+    return sorted(((t, p) for p, t in found.items()), key=lambda tp: (tp[0], tp[1].name))

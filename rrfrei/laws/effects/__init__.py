@@ -271,7 +271,6 @@ def compose(base: LawSpec, effect_names: list[str]) -> LawSpec:
         params=tuple(params),
         state_size=state,
         description=base.description + " Augmented with " + ", ".join(effect_names) + ".",
-        opensees_element="",
         uses_velocity=True,
         check=_check,
         effects=tuple(effect_names),

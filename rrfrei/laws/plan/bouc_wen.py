@@ -68,9 +68,9 @@ figure-eight and step paths agree within 1e-9 (the issue's bound, tested), up to
 spurious root (a root of the backward-Euler equation beyond the bound |z| <= (beta +
 gamma)^(-1/eta), reached by steps |du| >> u_y with gamma > beta), where which root the iteration
 lands on, and whether its second call settles, is decided by the last bit, in OpenSees as here.
-Until 2026-11-27 the iteration was OpenSees' operation for operation (every ``pow`` called, the
-cubes as ``pow`` returns them, the ``dgesv`` sequence), equal to openseespy bit for bit on that
-path: 223 ns per step against 151 ns now (``docs/plan_laws.md``).
+Following OpenSees operation for operation (every ``pow`` called, the ``dgesv`` sequence) would
+give openseespy's bits on that path at a markedly higher cost per step (``docs/plan_laws.md``;
+the measurements in ``CHANGELOG.md``).
 
 Speed: the powers above; ``pow`` is glibc's ``__ieee754_pow`` itself, without the wrappers
 (:func:`_bind_pow`, same values).  The arithmetic is written once, on scalars (:func:`update`:
@@ -164,8 +164,8 @@ def _bind_pow() -> str:
     ``pow@@GLIBC_2.29``.  Their values are the same for every argument: a wrapper only sets
     errno, or calls ``__kernel_standard``, whose POSIX-mode results on overflow, underflow and
     invalid arguments are those ``__ieee754_pow`` already returns (checked over 10^6 random and
-    special arguments, bit for bit).  Skipping the wrappers saves about 1.6 ns of the ~12 ns of
-    a call.  Elsewhere (no ``dlvsym``, or no such symbol): the C library's ``pow``."""
+    special arguments, bit for bit).  Skipping the wrappers saves a trampoline and a wrapper
+    call per power.  Elsewhere (no ``dlvsym``, or no such symbol): the C library's ``pow``."""
     name = ctypes.util.find_library("m")
     libm = ctypes.CDLL(name) if name else ctypes.CDLL(None)
     addr = None
@@ -448,11 +448,10 @@ def step(p, sc, u, v, dt, st, f, k):
 
     Load, :func:`update` on scalars, store (every output entry written once, at the end): an
     array touched in several branches made Numba keep an atomic incref and decref of four array
-    arguments per call (its reference-count pruning could not pair them; ``perf`` put 15-18% of
-    the samples in ``NRT_incref``/``NRT_decref``).  ``forceinline``: LLVM inlines it into its
-    callers (the plan building), which saves the call of seven array arguments, 6-8% of a step,
-    without compiling it again (Numba's ``inline="always"`` did the same at the IR level and
-    took 2.3-5.6 s more to compile the driver)."""
+    arguments per call (its reference-count pruning could not pair them).  ``forceinline``: LLVM
+    inlines it into its callers (the plan building), which saves the call of seven array
+    arguments without compiling it again (Numba's ``inline="always"`` does the same at the IR
+    level, at a longer compilation)."""
     k_init = p[0]
     u0 = u[0]
     u1 = u[1]
@@ -608,7 +607,6 @@ SPEC = register(
         state_size=19,
         description="OpenSees ElastomericBearingBoucWen3d shear: vector Bouc-Wen z, local "
                     "Newton on its two components, per-component hardening.",
-        opensees_element="elastomericBearingBoucWen",
         static_calls=2,
         settled_index=SETTLED,
         history=drive,

@@ -207,6 +207,5 @@ SPEC = register(
         state_size=10,
         description="OpenSees ElastomericX (Kumar) in plan: coupled two-component Park-Wen "
         "hysteresis plus elastic rubber (ElastomericX.cpp update(), v3.7.1).",
-        opensees_element="ElastomericX",
     )
 )

@@ -201,6 +201,5 @@ SPEC = register(
         description="OpenSees HDR (Grant et al. 2004) in plan: isotropic elastic part plus a "
         "vector bounding-surface hysteresis with scragging and Mullins damage (HDR.cpp "
         "update(), v3.7.1).",
-        opensees_element="HDR",
     )
 )

@@ -106,6 +106,5 @@ SPEC = register(
         state_size=2,
         description="OpenSees ElastomericBearingPlasticity3d shear: circular yield surface, "
                     "return mapping, per-component hardening.",
-        opensees_element="elastomericBearingPlasticity",
     )
 )

@@ -27,7 +27,7 @@ integrator) are templates instantiated per law (:mod:`rrfrei.laws.specialise`) w
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -45,7 +45,6 @@ class PlanLawSpec:
     step : the jitted step kernel (contract in the module docstring).
     state_size : length of the state vector.
     description : one line, with the OpenSees source it ports.
-    opensees_element : the openseespy 3-D element command it matches ("" for none).
     initial_state : the virgin state (zeros when not given).
     static_calls : 1, or 2 for a law whose step starts from the trial state on entry (a local
         iteration from the trial z): the history driver then calls it twice per step, as
@@ -67,7 +66,6 @@ class PlanLawSpec:
     step: Callable = field(compare=False, repr=False)
     state_size: int
     description: str
-    opensees_element: str = ""
     initial_state: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
     static_calls: int = 1
     settled_index: int = -1
@@ -98,6 +96,21 @@ class PlanLawSpec:
     def law(self) -> _laws.LawSpec:
         """The unidirectional law: parameter names, units, bounds, priors, ``pack``."""
         return _laws.get(self.name)
+
+    @property
+    def opensees_element(self) -> str:
+        """The OpenSees element whose coupled 3-D form the plan law ports: the unidirectional
+        law's (``LawSpec.opensees``), "" for none."""
+        return self.law.opensees_element
+
+    def opensees_args(self, params: Mapping[str, float] | np.ndarray, *, orient: Sequence[float],
+                      materials: Sequence[int] | None = None) -> list:
+        """Arguments of ``ops.element(self.opensees_element, tag, i_node, j_node, *args)`` that
+        build the law at ``params`` in a 3-D model (``-ndm 3 -ndf 6``), both shear directions
+        active: the unidirectional law's argument list (:meth:`rrfrei.laws.LawSpec.opensees_args`)
+        with ``ndm = 3``; ``orient`` puts local y and z (the two shear directions) along the
+        plan axes."""
+        return self.law.opensees_args(params, ndm=3, orient=orient, materials=materials)
 
 
 _REGISTRY: dict[str, PlanLawSpec] = {}
@@ -153,8 +166,7 @@ def get(name: str | PlanLawSpec | _laws.LawSpec) -> PlanLawSpec:
 NONFINITE_DISP = -5
 """Status of a whole-history driver whose displacement history holds a non-finite value, with
 the first such sample as its index: the drivers scan ``disp`` before the first step (inside the
-compiled call, where the numpy check cost ``simulate_force`` 60-80 us after another program had
-run, about 4 % of a 5,000-step bouc_wen history), and ``simulate_force`` raises the ValueError
+compiled call, cheaper than a numpy check before it), and ``simulate_force`` raises the ValueError
 of :func:`rrfrei.simulate.as_plan_history` that names the sample and component."""
 
 HISTORY = "rrfrei.laws.plan._history"

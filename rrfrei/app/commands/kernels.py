@@ -1,0 +1,55 @@
+"""``rrfrei kernels LAW``: the generated kernel files a law runs, so a reader can open them."""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import json
+import sys
+
+from rrfrei.calibration.likelihood import batch_kernels
+from rrfrei.laws import get, specialise
+from structures.history import kernel as building_kernel
+
+EXAMPLE = """\
+Example:
+  rrfrei kernels plasticity          # the template each file instantiates, then its path
+  rrfrei kernels bouc_wen+rate --json
+"""
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "kernels",
+        help="list the generated kernel files of a law (the code a command compiles)",
+        description=(
+            "Generate (if needed) and list the kernel files bound to LAW: the whole-history "
+            "drivers of simulate and calibrate, the batched likelihood of calibrate and the "
+            "building's Newmark kernel of the time histories, plus any other instance of the law "
+            "in the kernel cache (plan forms). Each file is verified against the hash in its "
+            "name; the files live in the private per-user kernel cache."
+        ),
+        epilog=EXAMPLE,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("law", metavar="LAW", help="law name, e.g. plasticity or bouc_wen+rate")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    spec = get(args.law)
+    batch_kernels(spec)  # calibrate's batched likelihood (generates the history driver too)
+    building_kernel(spec)  # the time histories' Newmark kernel
+    files = specialise.kernel_files(spec)
+    source = inspect.getsourcefile(inspect.getmodule(getattr(spec.step, "py_func", spec.step)))
+    if args.json:
+        json.dump({"law": spec.name, "law_source": source, "files": [
+            {"template": t, "path": str(p)} for t, p in files]}, sys.stdout, indent=2)
+        print()
+        return 0
+    print(f"law {spec.name}: step kernel in {source}")
+    width = max((len(t) for t, _ in files), default=0)
+    for template, path in files:
+        print(f"  {template:<{width}}  {path}")
+    return 0
