@@ -38,9 +38,9 @@ def robust_local_solve(spec: LawSpec, local_solver) -> bool:
     ``"opensees"`` (OpenSees' own local iteration, the default) is valid for every law;
     ``"robust"`` for a law with a robust local solve in its registry entry
     (``LawSpec.step_robust``: ``bouc_wen``'s bracketed safeguarded Newton where OpenSees'
-    iteration fails, see :mod:`rrfrei.laws.bouc_wen`) and for the closed-form laws
-    (``local_iteration=False``: ``linear``, ``plasticity``), where it changes nothing.  Raises
-    ``ValueError`` otherwise.
+    iteration fails, see :mod:`rrfrei.laws.bouc_wen`; ``elastomeric_x`` and every augmented law
+    use it) and for the closed-form laws (``local_iteration=False``: ``linear``, ``plasticity``,
+    ``hdr``), where it changes nothing.  Raises ``ValueError`` otherwise.
     """
     if not isinstance(local_solver, str) or local_solver not in LOCAL_SOLVERS:
         raise ValueError(
@@ -119,7 +119,8 @@ def simulate_force(
         answer.
     return_tangent : also return the tangent stiffness history [kN/m].
     local_solver : ``"opensees"`` (default) runs OpenSees' local Newton iteration and fails where
-        it fails; ``"robust"`` (``bouc_wen`` only; a no-op for ``linear`` and ``plasticity``)
+        it fails; ``"robust"`` (every law with a local iteration and every augmented law; a
+        no-op for the explicit laws ``linear``, ``plasticity`` and ``hdr``)
         keeps that iteration wherever it converges to a root (identical forces) and, where it
         fails or stops away from a root, solves the same step equation by bracketed safeguarded
         Newton

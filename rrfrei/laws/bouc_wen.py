@@ -106,7 +106,10 @@ reachable through a spurious root that OpenSees' own iteration converged to) has
 and f > 0 on y >= 0; on y < 0, f has one turning point at |y| = (rho (gamma - beta) eta)^(-1/(eta-1)),
 a minimum for eta > 1 (a root exists iff f <= 0 there, bracketed by it and y_C) and a maximum
 for eta < 1 (f -> -oo: the bracket is found by doubling downward from y_C); otherwise status
--2 (no root).  On the bracket
+-2 (no root).  There the Bouc-Wen flow itself diverges (beyond |y| = (gamma - beta)^(-1/eta)
+on y < 0, dy/drho < 0), so :func:`step_robust` restarts the step from z_C projected onto the
+bound, |z_C| = z_max (:func:`solve_robust`, the return mapping to the saturation surface), where
+case (b) always has a root: the robust path completes every history with finite input.  On the bracket
 [a, b] with f(a) <= 0 <= f(b), safeguarded Newton (Numerical Recipes' ``rtsafe``): the
 Newton step is taken only if it stays strictly inside the bracket and at least halves the step
 before last, otherwise bisection; every evaluation shrinks the bracket.  At y = 0 (eta < 1: f'
@@ -699,6 +702,28 @@ def solve_bracketed(zc, r, eta, beta, gamma):
     return s * y, -2, ROBUST_MAX_ITER
 
 
+@njit(cache=True, error_model="numpy")
+def solve_robust(zc, r, eta, beta, gamma):
+    """:func:`solve_bracketed`, and where f has no root from a committed state beyond the bound
+    |z_C| > z_max = (beta + gamma)^(-1/eta), the root from z_C projected onto the bound.
+
+    Such a state is reachable only through a spurious root that OpenSees' own iteration
+    converged to (module docstring, "Robust local solve"); from it the step equation can have
+    no root at all (the Bouc-Wen flow beyond |z| = (gamma - beta)^(-1/eta) on the side opposite
+    to du diverges), so no solver can continue it.  Projecting z_C onto the bound, the return
+    mapping to the saturation surface, restores an admissible state, from which a root always
+    exists (case (b) of the bracket).  Returns ``(z, status)``: status 0, or -2 if even that
+    fails (non-finite input).
+    """
+    z, status, _ = solve_bracketed(zc, r, eta, beta, gamma)
+    if status == 0:
+        return z, 0
+    zmax = (beta + gamma) ** (-1.0 / eta)
+    if abs(zc) > zmax:
+        z, status, _ = solve_bracketed(zmax if zc > 0.0 else -zmax, r, eta, beta, gamma)
+    return z, status
+
+
 NEAR_ROOT = 1e-10
 """Certificate of an OpenSees result in :func:`step_robust`: f changes sign within
 NEAR_ROOT max(1, |z|) of it (a converged Newton iterate is within ~1e-12 of its root)."""
@@ -722,11 +747,12 @@ def _near_root(zc, r, z, eta, beta, gamma):
 @njit(cache=True, error_model="numpy")
 def step_robust(p, sc, u, v, dt, st):
     """:func:`step`, and where OpenSees' iteration fails (status -1 or -2) or stops away from a
-    root (:func:`_near_root`), the root of the same equation by :func:`solve_bracketed` from
-    the committed z (status :data:`STATUS_ROBUST`).
+    root (:func:`_near_root`), the root of the same equation by :func:`solve_robust` from
+    the committed z (status :data:`STATUS_ROBUST`): bracketed, and from a committed state beyond
+    the bound where no root exists, from that state projected onto the bound.
 
     Force and tangent as in :func:`step` (same expressions) at the bracketed root; the |z|^(eta-1)
-    cache is cleared.  Status -1 / -2 only if no bracket exists (module docstring).
+    cache is cleared.  Status -1 / -2 only for a non-finite state or step.
     """
     q, kt, status = step(p, sc, u, v, dt, st)
     k_init, qd, k0, k2, k3, mu, eta, beta, gamma = _constants(p)
@@ -737,7 +763,7 @@ def step_robust(p, sc, u, v, dt, st):
             return q, kt, 0
     elif status != -1 and status != -2:
         return q, kt, status
-    z, st2, _ = solve_bracketed(sc[1], du / uy, eta, beta, gamma)
+    z, st2 = solve_robust(sc[1], du / uy, eta, beta, gamma)
     if st2 != 0:
         return q, kt, status
     st[1] = z

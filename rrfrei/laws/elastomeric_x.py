@@ -26,7 +26,10 @@ iter < 100; status -2 when iter reaches 100, -1 if |J11| or |J22| <= DBL_EPSILON
     k_t   = cd/dt + fy dz/du + ke
 
 When du == 0 exactly nothing is recomputed (force and tangent of the previous call, including
-the cd v term).  On loading dz/du = (1 - z^2)/u_y, so z = tanh(u/u_y) from a virgin state.
+the cd v term).  Robust local solve (``local_solver="robust"``, :func:`step_robust`): where
+the element's iteration fails, the same equation, which is Bouc-Wen's with eta = 2, is solved by
+Bouc-Wen's bracketed safeguarded Newton (a deviation from OpenSees, reported).
+On loading dz/du = (1 - z^2)/u_y, so z = tanh(u/u_y) from a virgin state.
 
 State (float64[4])::
 
@@ -39,6 +42,7 @@ State (float64[4])::
 from numba import njit
 
 from rrfrei.laws._util import sgn
+from rrfrei.laws.bouc_wen import STATUS_ROBUST, solve_robust
 from rrfrei.laws.registry import OPENSEES_VERTICAL, LawSpec, OpenSeesElement, ParamSpec, Prior, register
 
 PI_OPENSEES = 3.14159
@@ -107,6 +111,38 @@ def step(p, sc, u, v, dt, st):
     return q, kt, 0
 
 
+@njit(cache=True, error_model="numpy")
+def step_robust(p, sc, u, v, dt, st):
+    """:func:`step`, and where the element's Newton iteration fails (status -1 or -2) the root of
+    the same backward-Euler equation by :func:`rrfrei.laws.bouc_wen.solve_robust` from the
+    committed z (status :data:`rrfrei.laws.bouc_wen.STATUS_ROBUST`, a deviation from OpenSees).
+
+    The equation is Bouc-Wen's with eta = 2, the sign coefficient 0.9 and the constant 0.1
+    (module docstring), so its bracket (|z| <= 1) and its safeguarded Newton apply unchanged.
+    Where the element's iteration converges the result is :func:`step`'s, bit for bit; force
+    and tangent at the bracketed root by :func:`step`'s expressions.
+    """
+    q, kt, status = step(p, sc, u, v, dt, st)
+    if status != -1 and status != -2:
+        return q, kt, status
+    fy = p[0]
+    cd = p[8]
+    ke, k0 = stiffness(p)
+    du = u - sc[0]
+    ruy = k0 / fy
+    z, st2 = solve_robust(sc[1], du * ruy, 2.0, GAMMA_SIGN, BETA_CONST)
+    if st2 != 0:
+        return q, kt, status
+    st[1] = z
+    tmp1 = BETA_CONST + GAMMA_SIGN * sgn(z * du)
+    dzdu = ruy * (1.0 - z * (z * tmp1))
+    q = cd * v + fy * z + ke * u
+    kt = cd / dt + fy * dzdu + ke
+    st[2] = q
+    st[3] = kt - (k0 + ke)
+    return q, kt, STATUS_ROBUST
+
+
 def opensees_args(p, ndm, orient, materials=None) -> list:
     """OpenSees' 29 positional ElastomericX arguments after the tag and nodes (``OPS_ElastomericX``):
     Fy alpha Gr Kbulk D1 D2 ts tr n | x1 x2 x3 y1 y2 y3 | kc PhiM ac sDratio m cd tc tag1-4
@@ -121,6 +157,7 @@ SPEC = register(
     LawSpec(
         name="elastomeric_x",
         step=step,
+        step_robust=step_robust,
         params=(
             ParamSpec("fy", "kN", 1e-9, 1e6,
                       "characteristic strength Qd (OpenSees' name Fy)", Prior("loguniform", 1e-2, 1e3)),

@@ -26,7 +26,8 @@ Damage and forces (l.544-567)::
 The tangent is the element's "consistent" one (l.569-612) reduced to 1-D, including its
 dKM/dDM typo (c4 (1 - c4) where c3 is meant); it never affects the force.  HDR recomputes on
 every call (no du == 0 shortcut).  The approach to the bounding surface is a backward-Euler step,
-so the result depends on the step size.
+so the result depends on the step size.  The update is explicit (no local iteration, so it cannot fail to
+converge): ``local_solver="robust"`` changes nothing (``local_iteration=False``).
 
 State (float64[6])::
 
@@ -177,6 +178,7 @@ SPEC = register(
                       Prior("halfnormal", 1e3)),
         ),
         state_size=6,
+        local_iteration=False,
         description="OpenSees HDR (Grant et al. 2004): elastic + bounding-surface hysteresis "
         "with scragging and Mullins damage.",
         opensees=OpenSeesElement("HDR", opensees_args, dims=(3,)),

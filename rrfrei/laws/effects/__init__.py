@@ -247,6 +247,15 @@ def compose(base: LawSpec, effect_names: list[str]) -> LawSpec:
     binds["P_SLACK"] = po + eff.compliance_param if eff is not None else 0
     binds["S_SLACK"] = so + eff.state_size - 3 if eff is not None else 0
     kernels = specialise.instantiate(TEMPLATE, binds, name)
+    # the robust local solve (``local_solver="robust"``): the same template with the base law's
+    # robust step; a positive status of that step (a deviation from OpenSees) passes through the
+    # effects and the series and slack solves.  A base law without a local iteration needs none
+    # (the effects' own series and slack solves are bracketed already).
+    if base.step_robust is not None:
+        step_robust = specialise.instantiate(TEMPLATE, {**binds, "base_step": base.step_robust},
+                                             name + "_robust").step
+    else:
+        step_robust = kernels.step
 
     base_check = base.check
     nb = len(base.params)
@@ -258,6 +267,7 @@ def compose(base: LawSpec, effect_names: list[str]) -> LawSpec:
     return LawSpec(
         name=name,
         step=kernels.step,
+        step_robust=step_robust,
         params=tuple(params),
         state_size=state,
         description=base.description + " Augmented with " + ", ".join(effect_names) + ".",

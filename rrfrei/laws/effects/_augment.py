@@ -53,7 +53,7 @@ HAS_SLACK = False
 def inner(p, sc, u, v, dt, st):
     """Base law with every inner effect (the series slider excluded): F = g f_b + f_a."""
     fb, kb, status = base_step(p[:NB], sc[:NS], u, v, dt, st[:NS])
-    if status != 0:
+    if status < 0:
         return fb, kb, status
     g = 1.0
     dg = 0.0
@@ -63,7 +63,7 @@ def inner(p, sc, u, v, dt, st):
     g, dg, fa, ka = effect_2(p, P_2, sc, st, S_2, u, v, dt, fb, kb, g, dg, fa, ka)
     g, dg, fa, ka = effect_3(p, P_3, sc, st, S_3, u, v, dt, fb, kb, g, dg, fa, ka)
     g, dg, fa, ka = effect_4(p, P_4, sc, st, S_4, u, v, dt, fb, kb, g, dg, fa, ka)
-    return g * fb + fa, g * kb + fb * dg + ka, 0
+    return g * fb + fa, g * kb + fb * dg + ka, status
 
 
 @njit(cache=True)
@@ -88,8 +88,9 @@ def _stick(p, sc, u, us, ys, fs, v, dt, st):
     cs = ys / fs  # the stick spring's compliance 1 / k_s [m/kN]
     x0 = u - us
     f, k, status = inner(p, sc, x0, v, dt, st)
-    if status != 0 or f == 0.0:
+    if status < 0 or f == 0.0:
         return x0, f, k, status
+    dev = status
     x1 = x0 - f * cs
     lo = min(x0, x1)
     hi = max(x0, x1)
@@ -102,15 +103,16 @@ def _stick(p, sc, u, us, ys, fs, v, dt, st):
         else:
             lo = x
         if abs(ph) <= tol or hi - lo <= tol:
-            return x, f, k, 0
+            return x, f, k, dev
         d = 1.0 + k * cs
         xn = x - ph / d if d > 0.0 else 0.5 * (lo + hi)
         if not (lo < xn < hi):
             xn = 0.5 * (lo + hi)
         x = xn
         f, k, status = _inner_fresh(p, sc, x, v, dt, st)
-        if status != 0:
+        if status < 0:
             return x, f, k, status
+        dev = max(dev, status)
     return x, f, k, -2
 
 
@@ -133,16 +135,17 @@ def _slide(p, sc, u, v, dt, st):
     else:
         x, f, kt, status = _stick(p, sc, u, us, ys, fs, v, dt, st)
         st[so] = us
-        if status == 0 and abs(f) <= fs:
+        if status >= 0 and abs(f) <= fs:
             if SERIES_TRAVEL:
                 st[so + 1] = 0.0  # stuck: the travel since the last stick restarts
-            return f, kt / (1.0 + kt * ys / fs), 0
-    if status != 0 or abs(f) <= fs:
+            return f, kt / (1.0 + kt * ys / fs), status
+    if status < 0 or abs(f) <= fs:
         if SERIES_TRAVEL:
             st[so + 1] = 0.0
         return f, kt, status
     # sliding: find the inner displacement x with |F(x)| = fs between x (|F| > fs) and a point
     # back towards the committed inner displacement where |F| <= fs
+    dev = status  # > 0: a robust base solve acted (a deviation from OpenSees)
     s = 1.0 if f > 0.0 else -1.0
     target = s * fs
     tol = 1e-12 * max(fs, 1.0) + 1e-9 * fs
@@ -168,15 +171,17 @@ def _slide(p, sc, u, v, dt, st):
             break
         xn = xt
         fn, kn, status = _inner_fresh(p, sc, xn, v, dt, st)
-        if status != 0:
+        if status < 0:
             return fn, kn, status
+        dev = max(dev, status)
     if not found:
         # bracket then bisect
         lo = hi - s * step
         for _ in range(80):
             fl, kl, status = _inner_fresh(p, sc, lo, v, dt, st)
-            if status != 0:
+            if status < 0:
                 return fl, kl, status
+            dev = max(dev, status)
             if s * (fl - target) <= 0.0:
                 break
             step *= 2.0
@@ -186,8 +191,9 @@ def _slide(p, sc, u, v, dt, st):
         for _ in range(200):
             xn = 0.5 * (lo + hi)
             fn, kn, status = _inner_fresh(p, sc, xn, v, dt, st)
-            if status != 0:
+            if status < 0:
                 return fn, kn, status
+            dev = max(dev, status)
             if s * (fn - target) > 0.0:
                 hi = xn
             else:
@@ -197,7 +203,7 @@ def _slide(p, sc, u, v, dt, st):
     st[so] = u - xn if ys == 0.0 else u - xn - s * ys
     if SERIES_TRAVEL:
         st[so + 1] = sc[so + 1] + abs(st[so] - us)
-    return target, 0.0, 0
+    return target, 0.0, dev
 
 
 @njit(cache=True)
@@ -237,10 +243,12 @@ def _slack(p, sc, u, v, dt, st):
     f = 0.0
     k = 0.0
     dx = 0.0
+    dev = 0
     for _ in range(100):
         f, k, status = _core_fresh(p, sc, u - x, v, dt, st)
-        if status != 0:
+        if status < 0:
             return f, k, status
+        dev = max(dev, status)
         xs, dx = slack_compliance(p, P_SLACK, f)
         ph = x - xs
         if ph > 0.0:
@@ -260,7 +268,7 @@ def _slack(p, sc, u, v, dt, st):
     st[S_SLACK + 1] = u
     d = 1.0 + k * dx
     st[S_SLACK + 2] = k * dx / d if d > 0.0 else 0.0
-    return f, k / d, 0
+    return f, k / d, dev
 
 
 @njit(cache=True)
