@@ -70,17 +70,50 @@ def calibration_reading(fits: pd.DataFrame, failed: dict[str, str], quick: bool)
     return reading
 
 
+PARETO_K_LIMIT = 0.7
+"""Pareto k above which a PSIS estimate is unreliable (Vehtari et al. 2017, 2024; for the several
+thousand draws of a calibration the sample-size-dependent limit min(1 - 1 / log10 S, 0.7) is 0.7)."""
+
+
+def pareto_k_reading(t: pd.DataFrame, limit: float = PARETO_K_LIMIT) -> tuple[str, bool]:
+    """The largest Pareto k of PSIS-LOO and of leave-one-cycle-out, both, and whether any of them
+    makes the comparison unreliable: ``(sentence, reliable)``."""
+    parts, bad = [], []
+    for col, crit in (("k_max_loo", "PSIS-LOO (one point left out)"),
+                      ("k_max_loco", "leave-one-cycle-out")):
+        if col not in t.columns:
+            continue
+        k = t[col].astype(float)
+        law = str(k.idxmax())
+        parts.append(f"{fmt(float(k.max()), 3)} for {crit} ({law})")
+        over = [f"{name} {fmt(float(v), 3)}" for name, v in k.items() if v > limit]
+        if over:
+            bad.append(f"{crit}: {', '.join(over)}")
+    text = "The largest Pareto k is " + " and ".join(parts) + "."
+    if bad:
+        text += (f" Some k exceed {fmt(limit)} ({'; '.join(bad)}), the limit above which the PSIS estimate "
+                 "of a left-out elpd is unreliable (Vehtari et al. 2017, 2024): this comparison is "
+                 "UNRELIABLE, its elpd differences and standard errors are rough at best; refit with those "
+                 "points or cycles left out (exact cross-validation) before trusting the ranking.")
+        return text, False
+    text += (f" All are at most {fmt(limit)} (the PSIS reliability limit, Vehtari et al. 2017, 2024): "
+             "the estimates are reliable.")
+    return text, True
+
+
 def comparison_reading(t: pd.DataFrame) -> str:
-    """Step 3: PSIS-LOO's ranking, how clear it is, whether WAIC and LOCO agree, Pareto k."""
+    """Step 3: PSIS-LOO's ranking, how clear it is, whether WAIC and LOCO agree, Pareto k of both."""
     best, second = t.index[0], t.index[1]
     diff = float(t.loc[best, "elpd_loo"] - t.loc[second, "elpd_loo"])
     dse = float(t.loc[second, "dse_loo"])
     ratio = diff / dse if dse > 0 else float("inf")
+    k_text, reliable = pareto_k_reading(t)
     verdict = ("a clear difference" if ratio > 2 else
                "within about two standard errors: the data hardly separate them")
+    if not reliable:
+        verdict += ", if the estimates held (see the Pareto k below)"
     loco_best = str(t["elpd_loco"].idxmax())
     waic_best = str(t["elpd_waic"].idxmax())
-    worst_k = float(t["k_max_loo"].max())
     reading = (
         f"PSIS-LOO ranks {best} first (elpd {fmt(t.loc[best, 'elpd_loo'], 5)} +- "
         f"{fmt(t.loc[best, 'se_loo'], 3)}), ahead of {second} by {fmt(diff, 3)} with a standard error "
@@ -89,10 +122,9 @@ def comparison_reading(t: pd.DataFrame) -> str:
         f"holds out whole cycles and so judges prediction of unseen loops, "
         f"{'agrees' if loco_best == best else f'prefers {loco_best}'}. "
     )
-    reading += (f"The largest Pareto k is {fmt(worst_k, 3)}"
-                + (" (above 0.7: some LOO estimates are unreliable)." if worst_k > 0.7
-                   else " (below 0.7: the LOO estimates are reliable)."))
-    reading += f" The best law, {best}, is carried into the next steps."
+    reading += k_text
+    reading += (f" The best law, {best}, is carried into the next steps." if reliable else
+                f" {best}, first by PSIS-LOO, is carried into the next steps with that caveat.")
     return reading
 
 

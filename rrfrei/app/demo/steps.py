@@ -142,7 +142,8 @@ def step_compare(ctx: DemoContext, sec: Section) -> None:
     ctx.results["comparison"] = res
     sec.add_table("criteria", table, "elpd (higher is better), effective parameters p, standard error se, "
                   "se of the difference to the best dse and stacking weights, for PSIS-LOO, WAIC and "
-                  "leave-one-cycle-out (LOCO); k_max: largest Pareto k.")
+                  "leave-one-cycle-out (LOCO); k_max_loo and k_max_loco: largest Pareto k of PSIS-LOO and of "
+                  "LOCO (above 0.7 the PSIS estimate is unreliable).")
     sec.add_table("pareto_k", res.pareto_k.reset_index(), "Pareto k counts of PSIS-LOO per law.")
     sec.add_table("loco_cycles", res.loco_cycles, "Leave-one-cycle-out elpd per cycle and law.")
     sec.add_figure("elpd", res.figure(), "elpd +- se per law and criterion.")
