@@ -199,8 +199,8 @@ def propagation_reading(rs: Any, summary: pd.DataFrame, exceed: pd.DataFrame, sp
     n_conv = int(rs.table["converged"].astype(bool).sum())
     reading = (
         f"{len(rs.table)} analyses of the {building.replace('_', '-')} example building with its "
-        f"{count} bearings following the {law} posterior ({n_conv} converged). At scale "
-        f"{fmt(scale)} the peak isolator displacement has a median of {fmt(1e3 * row['median'], 3)} mm "
+        f"{count} bearings following the {law} posterior ({n_conv} converged). With the records as "
+        f"recorded the peak isolator displacement has a median of {fmt(1e3 * row['median'], 3)} mm "
         f"over all records (16-84 %: {fmt(1e3 * row['p16'], 3)}-{fmt(1e3 * row['p84'], 3)} mm); "
         f"{worst_rec['record']} drives it hardest (median {fmt(1e3 * worst_rec['median'], 3)} mm). "
         f"The median peak story drift ratio is {pct(drift['median'])}."
@@ -221,6 +221,40 @@ def propagation_reading(rs: Any, summary: pd.DataFrame, exceed: pd.DataFrame, sp
                     f"log peak isolator displacement, more than the records")
         reading += " (law of total variance)."
     return reading
+
+
+def fragility_reading(msa: Any, frs: list) -> str:
+    """Step 6, fragility: the IM and its stripes, the fitted median and beta per limit, the span."""
+    lv, rim = msa.levels, msa.record_im
+    rs = msa.responses
+    n_draws = len(rs.draws)
+    text = (
+        f"Fragility by multiple stripe analysis: the {len(rim)} records were scaled to {len(lv)} stripes "
+        f"of {msa.im.label.removesuffix(' [g]')} from {fmt(min(lv), 3)} to {fmt(max(lv), 3)} g (the records "
+        f"as recorded have {fmt(min(rim.values()), 3)} to {fmt(max(rim.values()), 3)} g), and {n_draws} "
+        f"posterior draws ran on every scaled record; the lognormal curves are fitted by maximum likelihood "
+        f"over the stripe counts (Baker 2015)."
+    )
+    for f in frs:
+        share = np.divide(f.z, f.n)
+        lo, hi = float(share[int(np.argmin(f.im))]), float(share[int(np.argmax(f.im))])
+        if f.demand == "iso_disp_peak_m":
+            what = f"the isolator goes beyond {fmt(1e3 * f.limit, 3)} mm (the largest tested displacement)"
+        elif f.demand == "drift_ratio_max":
+            what = f"the largest story drift ratio exceeds {pct(f.limit)}"
+        else:
+            what = f"{f.demand} exceeds {fmt(f.limit, 3)}"
+        if math.isfinite(f.theta):
+            text += (f" Half of the runs: {what} at {msa.im.name} = {fmt(f.theta, 3)} g (beta "
+                     f"{fmt(f.beta, 2)}); {pct(lo)} of the runs at the lowest stripe and {pct(hi)} at the "
+                     "highest.")
+            if lo > 0.2 or hi < 0.8:
+                text += " The stripes do not span the whole curve: beyond them it is extrapolated."
+            if f.note:
+                text += f" Note: {f.note}."
+        else:
+            text += f" {what[0].upper()}{what[1:]}: no curve ({f.note}, up to {fmt(max(lv), 3)} g)."
+    return text
 
 
 def orbit_reading(ans: Any, pair: str) -> str:
