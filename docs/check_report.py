@@ -21,9 +21,14 @@ What it does
 4. Collects console messages (``Runtime.consoleAPICalled``), uncaught exceptions
    (``Runtime.exceptionThrown``) and browser log entries (``Log.entryAdded``, e.g. a failed
    resource load); any message at level error, or any exception, fails the check.
-5. Saves a full-page screenshot (``Page.captureScreenshot`` with ``captureBeyondViewport``) to
-   ``--screenshot`` (default ``REPORT_DIR/screenshot.png``; the full page height is capped by
-   ``--max-height`` pixels, default 5000, to keep the file small).
+5. Saves a screenshot of the WHOLE page, top to bottom, to ``--screenshot`` (default
+   ``REPORT_DIR/screenshot.png``): the window is set to the page width and a tile height
+   (``Emulation.setDeviceMetricsOverride``), the page is scrolled tile by tile and each viewport
+   captured (``Page.captureScreenshot``), and the tiles are stitched with Pillow at the scroll
+   offsets the page reports (one capture of a page taller than the GPU's texture limit, about
+   16,000 px, comes back blank or repeated, so it is tiled).  ``--scale`` shrinks the stitched
+   image (e.g. 0.5 for the README); the height written always equals the page's.  The page's
+   height and the image's are printed, and a mismatch fails the check.
 
 Prints one line per finding and ``report check: OK`` or ``report check: FAILED``; exit status 0
 when the page passed, 1 when a check failed, 2 on a usage error (no such folder, no Chromium,
@@ -156,7 +161,60 @@ def _new_page(browser_ws: str, timeout: float) -> str:
     return f"{host}/devtools/page/{target}"
 
 
-def check(report_dir: Path, screenshot: Path, *, width: int = 1200, max_height: int = 5000,
+TILE_JS = ("(() => { window.scrollTo(0, %d); return JSON.stringify({y: Math.round(window.scrollY), "
+           "h: Math.ceil(document.documentElement.scrollHeight)}); })()")
+
+
+def full_page(cdp: DevTools, width: int, tile: int):
+    """The whole page as one Pillow image: viewport tiles at successive scroll offsets, stitched.
+
+    The window is ``width`` x ``tile`` CSS px at device scale 1; each tile is pasted at the scroll
+    offset the page reports (the last tile overlaps the one before when the page does not end on
+    a tile boundary).
+    """
+    import io
+
+    from PIL import Image
+
+    cdp.call("Emulation.setDeviceMetricsOverride", width=width, height=tile, deviceScaleFactor=1,
+             mobile=False)
+    state = json.loads(cdp.call("Runtime.evaluate", expression=TILE_JS % 0, returnByValue=True)
+                       ["result"]["value"])
+    height = int(state["h"])
+    page = Image.new("RGB", (width, height), "white")
+    y = 0
+    while True:
+        state = json.loads(cdp.call("Runtime.evaluate", expression=TILE_JS % y, returnByValue=True)
+                           ["result"]["value"])
+        time.sleep(0.05)  # let the compositor paint the scrolled frame
+        shot = cdp.call("Page.captureScreenshot", format="png")
+        img = Image.open(io.BytesIO(base64.b64decode(shot["data"]))).convert("RGB")
+        page.paste(img.crop((0, 0, width, min(img.height, height - state["y"]))), (0, state["y"]))
+        if state["y"] + tile >= height or (y > 0 and state["y"] <= y - tile):
+            break  # the bottom is in (or the page stopped scrolling)
+        y = state["y"] + tile
+    return page
+
+
+def save_screenshot(image, path: Path, scale: float = 1.0) -> list[str]:
+    """Write ``image`` (scaled by ``scale``) as PNG; return problems (empty: the whole page is in it)."""
+    from PIL import Image
+
+    width, height = image.size
+    if scale != 1.0:
+        image = image.resize((max(1, round(width * scale)), max(1, round(height * scale))),
+                             Image.Resampling.LANCZOS)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    image.save(path, format="PNG", optimize=True)
+    print(f"screenshot: {path} ({image.width}x{image.height} px: the whole page of {width}x{height} CSS px"
+          + (f" at scale {scale:g})" if scale != 1.0 else ")"))
+    problems = []
+    if round(height * scale) != image.height:
+        problems.append(f"the screenshot is {image.height} px tall, the page {height} px x {scale:g}")
+    return problems
+
+
+def check(report_dir: Path, screenshot: Path, *, width: int = 1200, tile: int = 2000, scale: float = 1.0,
           timeout: float = 60.0) -> list[str]:
     """Render ``report_dir/index.html``; return the list of problems (empty: passed)."""
     page = (report_dir / "index.html").resolve()
@@ -207,14 +265,8 @@ def check(report_dir: Path, screenshot: Path, *, width: int = 1200, max_height: 
                         problems.append(f"console error: {text}")
                     elif m == "Log.entryAdded" and p["entry"].get("level") == "error":
                         problems.append(f"browser log error: {p['entry'].get('text')}")
-                height = min(int(facts["height"]), max_height)
-                cdp.call("Emulation.setDeviceMetricsOverride", width=width, height=height,
-                         deviceScaleFactor=1, mobile=False)
-                shot = cdp.call("Page.captureScreenshot", format="png", captureBeyondViewport=True,
-                                clip={"x": 0, "y": 0, "width": width, "height": height, "scale": 1})
-                screenshot.parent.mkdir(parents=True, exist_ok=True)
-                screenshot.write_bytes(base64.b64decode(shot["data"]))
-                print(f"screenshot: {screenshot} ({width}x{height} px)")
+                image = full_page(cdp, width, tile)
+                problems.extend(save_screenshot(image, screenshot, scale))
             finally:
                 cdp.close()
         finally:
@@ -236,7 +288,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="PNG to write (default: REPORT_DIR/screenshot.png, so the tracked "
                              "docs/report.png is only replaced when asked for by name)")
     parser.add_argument("--width", type=int, default=1200)
-    parser.add_argument("--max-height", type=int, default=5000)
+    parser.add_argument("--tile", type=int, default=2000,
+                        help="height [px] of each captured tile (default 2000)")
+    parser.add_argument("--scale", type=float, default=1.0,
+                        help="shrink the stitched screenshot by this factor (default 1: full size)")
     args = parser.parse_args(argv)
     if args.screenshot is None:
         args.screenshot = args.report_dir / "screenshot.png"
@@ -246,7 +301,8 @@ def main(argv: list[str] | None = None) -> int:
         print("check_report: needs websocket-client (pip install websocket-client)", file=sys.stderr)
         return 2
     try:
-        problems = check(args.report_dir, args.screenshot, width=args.width, max_height=args.max_height)
+        problems = check(args.report_dir, args.screenshot, width=args.width, tile=args.tile,
+                         scale=args.scale)
     except FileNotFoundError as exc:
         print(f"check_report: {exc}", file=sys.stderr)
         return 2

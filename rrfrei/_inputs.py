@@ -21,7 +21,9 @@ def as_history(values, name: str, *, min_len: int = 1) -> np.ndarray:
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
         raise ValueError(f"{name} is not finite at index {bad[0]} (value {arr[bad[0]]})")
-    return np.ascontiguousarray(arr)
+    arr = np.ascontiguousarray(arr)
+    # writable: Numba compiles a read-only array (a ShearTest's, a Record's) as a second signature
+    return arr if arr.flags.writeable else arr.copy()
 
 
 def read_toml(path: str | Path) -> dict:

@@ -110,7 +110,13 @@ def fit_fragility(im, n, z, *, demand: str = "", limit: float = float("nan")) ->
     log_comb = float(np.sum(special.gammaln(n_ + 1) - special.gammaln(z_ + 1) - special.gammaln(n_ - z_ + 1)))
     order = np.argsort(x)
     frac = (z_ / n_)[order]
-    if np.all((frac == 0.0) | (frac == 1.0)) and np.all(np.diff(frac) >= 0):
-        # no stripe has a fraction strictly between 0 and 1: the likelihood grows as beta -> 0
-        note = "stripes perfectly separated (each all or none): beta is not identified (-> 0)"
+    interior = int(np.sum((frac > 0.0) & (frac < 1.0)))
+    if interior <= 1 and np.all(np.diff(frac) >= 0):
+        # the stripes below are all none, those above all all: theta can put the one stripe in
+        # between (if any) at its share for every beta, so the likelihood grows as beta -> 0
+        note = ("stripes perfectly separated (each all or none): beta is not identified (-> 0)"
+                if interior == 0 else
+                "only one stripe has a share strictly between none and all: beta is not identified "
+                f"(the fit's {beta:.2g} is where the optimiser stopped, the likelihood grows as beta -> 0); "
+                "place stripes closer around the median")
     return Fragility(theta=theta, beta=beta, loglik=log_comb - float(best.fun), note=note, **base)

@@ -115,3 +115,34 @@ def test_readings_follow_the_numbers_of_their_tables(quick_demo):
     hold = _table(quick_demo, "validation", "holdout")
     val = _section(quick_demo, "validation")["reading"]
     assert f"the hardest is {hold.loc[hold['nrmse'].idxmax(), 'test']}" in val
+
+
+def test_fragility_is_against_sa_at_the_isolated_period_in_g_over_stripes_that_span_it(quick_demo):
+    """Multiple stripe analysis: every record scaled to common levels of Sa(T_iso, 5 %) [g], from
+    where few runs exceed the limit to where most do; the maximum-likelihood fit is stated."""
+    fr = _table(quick_demo, "propagation", "fragility")
+    row = fr[fr["demand"] == "iso_disp_peak_m"].iloc[0]
+    assert row["im"].startswith("Sa(") and row["stripes"] >= 4
+    assert row["share_at_lowest"] <= 0.2 and row["share_at_highest"] >= 0.8
+    stripes = _table(quick_demo, "propagation", "stripes")
+    assert stripes.columns[0].startswith("Sa(") and stripes.columns[0].endswith("_g")
+    assert float(stripes.iloc[0, 0]) < float(row["median_g"]) < float(stripes.iloc[-1, 0])
+    reading = _section(quick_demo, "propagation")["reading"]
+    for words in ("multiple stripe analysis", "maximum likelihood", "5 % damping", "Baker 2015"):
+        assert words in reading
+
+
+def test_the_two_exceedance_figures_say_which_set_each_is_over(quick_demo):
+    page = (quick_demo["out"] / "index.html").read_text()
+    assert "with the records AS RECORDED" in page  # the exceedance curves: draws x records at scale 1
+    assert "records scaled to common intensities" in page
+    assert "share of each stripe" in page and "runs beyond the limit (points)" in page  # the fragility
+
+
+def test_the_comparison_reading_reports_the_pareto_k_of_loo_and_of_leave_one_cycle_out(quick_demo):
+    crit = _table(quick_demo, "comparison", "criteria")
+    reading = _section(quick_demo, "comparison")["reading"]
+    for col, name in (("k_max_loo", "PSIS-LOO"), ("k_max_loco", "leave-one-cycle-out")):
+        k = crit[col].max()
+        assert f"{k:.3g} for {name}" in reading
+    assert ("UNRELIABLE" in reading) == bool((crit[["k_max_loo", "k_max_loco"]] > 0.7).any().any())

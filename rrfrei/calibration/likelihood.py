@@ -178,9 +178,11 @@ def law_forces(spec: LawSpec, P: np.ndarray, test: ShearTest) -> tuple[np.ndarra
     """(forces (rows, n) [kN], status (rows,)) of law parameter rows ``P`` driven along ``test``'s
     displacement history (one batch, walkers in parallel); a failed row is NaN, status < 0."""
     P = np.ascontiguousarray(np.atleast_2d(P), dtype=float)
-    disp = np.ascontiguousarray(test.disp)
+    # writable copies: a test's arrays are read-only, and Numba compiles a read-only argument as a
+    # second signature of the kernel (tens of seconds cold) beside the calibration's writable one
+    disp = np.array(test.disp, dtype=float)
     use_time = bool(test.has_time)
-    time = np.ascontiguousarray(test.time if use_time else np.zeros_like(disp))
+    time = np.array(test.time if use_time else np.zeros_like(disp), dtype=float)
     return _forces(spec, P, disp, time, use_time)
 
 

@@ -32,6 +32,7 @@ def _fig(w: float, h: float):
 def figures(rep: GapReport) -> dict:
     """{file name: Figure} of the report."""
     from rrfrei.gap.residuals import cycle_levels
+    from rrfrei.gap.segment_map import draw_segment_map
 
     out = {}
     test = rep.calibration_data
@@ -47,19 +48,7 @@ def figures(rep: GapReport) -> dict:
             title=f"{rep.law} on {test.name}: residuals")
     w = rep.where
     if len(w):
-        piv = w.set_index(["axis", "segment"])[["error_share", "rms_over_noise", "coverage", "energy_error"]]
-        vals = piv.to_numpy(dtype=float)
-        lo, hi = np.nanmin(vals, axis=0, keepdims=True), np.nanmax(vals, axis=0, keepdims=True)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            norm = np.where(hi > lo, (vals - lo) / (hi - lo), 0.5)  # each column on its own range
-        ax2.imshow(np.ma.masked_invalid(norm), aspect="auto", cmap="YlOrRd", vmin=0, vmax=1)
-        ax2.set_yticks(range(len(piv)), [f"{a}: {s}" for a, s in piv.index], fontsize=6)
-        ax2.set_xticks(range(4), ["error share", "RMS / noise", "coverage", "energy err."], fontsize=7)
-        for i in range(vals.shape[0]):
-            for j in range(vals.shape[1]):
-                if math.isfinite(vals[i, j]):
-                    ax2.text(j, i, f"{vals[i, j]:.2g}", ha="center", va="center", fontsize=6)
-        ax2.set_title("segments ranked by excess error over noise")
+        draw_segment_map(fig, ax2, w)  # colour = concern on a fixed scale (pale calm, red alarming)
     out["gap_map.png"] = fig
     final = "+".join([rep.law, *rep.combination])
     tests = [test, *rep.holdout_data]

@@ -12,20 +12,22 @@ Steps (the isolator tests are SYNTHETIC RR-FREI-like tests, labelled so everywhe
 1. ``tests``        the four bundled tests: loops, per-cycle energy, k_eff and beta_eff;
 2. ``calibration``  Bayesian calibration of plasticity, bouc_wen, elastomeric_x and hdr on
                     protocol 1;
-3. ``comparison``   PSIS-LOO, WAIC and leave-one-cycle-out of the four laws; the best law is the
+3. ``comparison``   PSIS-LOO, WAIC and leave-one-cycle-out of the laws; the best law is the
                     one with the highest LOO elpd;
 4. ``validation``   the best law's predictions of the held-out protocols 2-4 (NRMSE, coverage,
                     energy per cycle);
 5. ``gap``          sim-to-real gap diagnosis of the best law (where the residuals sit, which
                     unmodelled effect explains them, how far the gap shrinks);
-6. ``propagation``  the best posterior through the bundled records on the 5-story example building;
+6. ``propagation``  the best posterior through the bundled records on the 5-story example building
+                    (as recorded), and its fragility by multiple stripe analysis at Sa(T_iso, 5 %);
 7. ``rubber``       the polyurethane PRF model fitted to its protocols and to the real VHB 4910 data.
 
 A step whose workflow is not available raises :class:`Placeholder`: its section is marked as a
 placeholder, which the tests and :attr:`DemoResult.ok` do not accept.
 
-Quick runs (``quick=True``) use fewer walkers and steps, fewer samples and records and a shorter
-rubber fit; the page says so.
+Quick runs (``quick=True``) calibrate two of the four laws (plasticity, bouc_wen: every law compiles
+kernels of its own, which dominates a first run), try four gap effects, and use fewer walkers and
+steps, samples, records and stripes and a shorter rubber fit; the page says so.
 
 Modules: :mod:`~rrfrei.app.demo.context` (settings, the shared context, what a step is),
 :mod:`~rrfrei.app.demo.steps` (the computations and tables, :data:`STEPS`),

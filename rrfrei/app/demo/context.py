@@ -37,9 +37,13 @@ class DemoSettings:
     steps: int | None = None  # None: until converged (>= 50 tau, stable), up to max_steps
     max_steps: int = 2000
     gap_draws: int = 200
+    gap_effects: tuple[str, ...] | None = None  # None: every catalogue effect
     n_samples: int = 100
-    records: tuple[str, ...] | None = None  # None: every bundled record
-    scales: tuple[float, ...] = (0.5, 1.0, 1.5)
+    records: tuple[str, ...] | None = None  # None: every bundled record (as recorded)
+    # fragility: multiple stripe analysis at Sa(T_iso, 5 %) (structures.stripes)
+    stripe_records: tuple[str, ...] | None = None  # None: every bundled record
+    stripes: int = 7
+    stripe_samples: int = 20
     building: str = "five_story"
     rubber_evals: int = 800
     rubber_restarts: int = 1
@@ -62,12 +66,16 @@ class DemoSettings:
         return cls(
             quick=True,
             seed=seed,
+            laws=("plasticity", "bouc_wen"),  # two of the four: each law compiles its own kernels
+            gap_effects=("rollover", "stiffening", "degradation", "mullins"),
             walkers=24,
             steps=200,
             gap_draws=60,
             n_samples=16,
             records=("elcentro", "kocaeli"),
-            scales=(1.0,),
+            stripe_records=("rinaldi", "tabas", "santamonica", "elcentro"),
+            stripes=6,
+            stripe_samples=6,
             rubber_evals=300,
             rubber_restarts=1,
             predict_draws=100,

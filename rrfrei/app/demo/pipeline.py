@@ -107,8 +107,12 @@ def run_demo(
     )
     if settings.quick:
         report.banner(
-            "This is a QUICK run (--quick): short chains, few samples and records, a short rubber "
-            "fit. Numbers are indicative only; run without --quick for the full analysis.",
+            f"This is a QUICK run (--quick): {len(settings.laws)} of the 4 laws "
+            f"({', '.join(settings.laws)}), short chains, "
+            + (f"{len(settings.gap_effects)} gap effects ({', '.join(settings.gap_effects)}), "
+               if settings.gap_effects is not None else "")
+            + "few samples, records and stripes, a short rubber fit. Numbers are indicative only; run "
+            "without --quick for the full analysis.",
             "note",
         )
     report.meta.update(

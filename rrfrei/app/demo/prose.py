@@ -70,17 +70,50 @@ def calibration_reading(fits: pd.DataFrame, failed: dict[str, str], quick: bool)
     return reading
 
 
+PARETO_K_LIMIT = 0.7
+"""Pareto k above which a PSIS estimate is unreliable (Vehtari et al. 2017, 2024; for the several
+thousand draws of a calibration the sample-size-dependent limit min(1 - 1 / log10 S, 0.7) is 0.7)."""
+
+
+def pareto_k_reading(t: pd.DataFrame, limit: float = PARETO_K_LIMIT) -> tuple[str, bool]:
+    """The largest Pareto k of PSIS-LOO and of leave-one-cycle-out, both, and whether any of them
+    makes the comparison unreliable: ``(sentence, reliable)``."""
+    parts, bad = [], []
+    for col, crit in (("k_max_loo", "PSIS-LOO (one point left out)"),
+                      ("k_max_loco", "leave-one-cycle-out")):
+        if col not in t.columns:
+            continue
+        k = t[col].astype(float)
+        law = str(k.idxmax())
+        parts.append(f"{fmt(float(k.max()), 3)} for {crit} ({law})")
+        over = [f"{name} {fmt(float(v), 3)}" for name, v in k.items() if v > limit]
+        if over:
+            bad.append(f"{crit}: {', '.join(over)}")
+    text = "The largest Pareto k is " + " and ".join(parts) + "."
+    if bad:
+        text += (f" Some k exceed {fmt(limit)} ({'; '.join(bad)}), the limit above which the PSIS estimate "
+                 "of a left-out elpd is unreliable (Vehtari et al. 2017, 2024): this comparison is "
+                 "UNRELIABLE, its elpd differences and standard errors are rough at best; refit with those "
+                 "points or cycles left out (exact cross-validation) before trusting the ranking.")
+        return text, False
+    text += (f" All are at most {fmt(limit)} (the PSIS reliability limit, Vehtari et al. 2017, 2024): "
+             "the estimates are reliable.")
+    return text, True
+
+
 def comparison_reading(t: pd.DataFrame) -> str:
-    """Step 3: PSIS-LOO's ranking, how clear it is, whether WAIC and LOCO agree, Pareto k."""
+    """Step 3: PSIS-LOO's ranking, how clear it is, whether WAIC and LOCO agree, Pareto k of both."""
     best, second = t.index[0], t.index[1]
     diff = float(t.loc[best, "elpd_loo"] - t.loc[second, "elpd_loo"])
     dse = float(t.loc[second, "dse_loo"])
     ratio = diff / dse if dse > 0 else float("inf")
+    k_text, reliable = pareto_k_reading(t)
     verdict = ("a clear difference" if ratio > 2 else
                "within about two standard errors: the data hardly separate them")
+    if not reliable:
+        verdict += ", if the estimates held (see the Pareto k below)"
     loco_best = str(t["elpd_loco"].idxmax())
     waic_best = str(t["elpd_waic"].idxmax())
-    worst_k = float(t["k_max_loo"].max())
     reading = (
         f"PSIS-LOO ranks {best} first (elpd {fmt(t.loc[best, 'elpd_loo'], 5)} +- "
         f"{fmt(t.loc[best, 'se_loo'], 3)}), ahead of {second} by {fmt(diff, 3)} with a standard error "
@@ -89,10 +122,9 @@ def comparison_reading(t: pd.DataFrame) -> str:
         f"holds out whole cycles and so judges prediction of unseen loops, "
         f"{'agrees' if loco_best == best else f'prefers {loco_best}'}. "
     )
-    reading += (f"The largest Pareto k is {fmt(worst_k, 3)}"
-                + (" (above 0.7: some LOO estimates are unreliable)." if worst_k > 0.7
-                   else " (below 0.7: the LOO estimates are reliable)."))
-    reading += f" The best law, {best}, is carried into the next steps."
+    reading += k_text
+    reading += (f" The best law, {best}, is carried into the next steps." if reliable else
+                f" {best}, first by PSIS-LOO, is carried into the next steps with that caveat.")
     return reading
 
 
@@ -167,8 +199,8 @@ def propagation_reading(rs: Any, summary: pd.DataFrame, exceed: pd.DataFrame, sp
     n_conv = int(rs.table["converged"].astype(bool).sum())
     reading = (
         f"{len(rs.table)} analyses of the {building.replace('_', '-')} example building with its "
-        f"{count} bearings following the {law} posterior ({n_conv} converged). At scale "
-        f"{fmt(scale)} the peak isolator displacement has a median of {fmt(1e3 * row['median'], 3)} mm "
+        f"{count} bearings following the {law} posterior ({n_conv} converged). With the records as "
+        f"recorded the peak isolator displacement has a median of {fmt(1e3 * row['median'], 3)} mm "
         f"over all records (16-84 %: {fmt(1e3 * row['p16'], 3)}-{fmt(1e3 * row['p84'], 3)} mm); "
         f"{worst_rec['record']} drives it hardest (median {fmt(1e3 * worst_rec['median'], 3)} mm). "
         f"The median peak story drift ratio is {pct(drift['median'])}."
@@ -189,6 +221,40 @@ def propagation_reading(rs: Any, summary: pd.DataFrame, exceed: pd.DataFrame, sp
                     f"log peak isolator displacement, more than the records")
         reading += " (law of total variance)."
     return reading
+
+
+def fragility_reading(msa: Any, frs: list) -> str:
+    """Step 6, fragility: the IM and its stripes, the fitted median and beta per limit, the span."""
+    lv, rim = msa.levels, msa.record_im
+    rs = msa.responses
+    n_draws = len(rs.draws)
+    text = (
+        f"Fragility by multiple stripe analysis: the {len(rim)} records were scaled to {len(lv)} stripes "
+        f"of {msa.im.label.removesuffix(' [g]')} from {fmt(min(lv), 3)} to {fmt(max(lv), 3)} g (the records "
+        f"as recorded have {fmt(min(rim.values()), 3)} to {fmt(max(rim.values()), 3)} g), and {n_draws} "
+        f"posterior draws ran on every scaled record; the lognormal curves are fitted by maximum likelihood "
+        f"over the stripe counts (Baker 2015)."
+    )
+    for f in frs:
+        share = np.divide(f.z, f.n)
+        lo, hi = float(share[int(np.argmin(f.im))]), float(share[int(np.argmax(f.im))])
+        if f.demand == "iso_disp_peak_m":
+            what = f"the isolator goes beyond {fmt(1e3 * f.limit, 3)} mm (the largest tested displacement)"
+        elif f.demand == "drift_ratio_max":
+            what = f"the largest story drift ratio exceeds {pct(f.limit)}"
+        else:
+            what = f"{f.demand} exceeds {fmt(f.limit, 3)}"
+        if math.isfinite(f.theta):
+            text += (f" Half of the runs: {what} at {msa.im.name} = {fmt(f.theta, 3)} g (beta "
+                     f"{fmt(f.beta, 2)}); {pct(lo)} of the runs at the lowest stripe and {pct(hi)} at the "
+                     "highest.")
+            if lo > 0.2 or hi < 0.8:
+                text += " The stripes do not span the whole curve: beyond them it is extrapolated."
+            if f.note:
+                text += f" Note: {f.note}."
+        else:
+            text += f" {what[0].upper()}{what[1:]}: no curve ({f.note}, up to {fmt(max(lv), 3)} g)."
+    return text
 
 
 def orbit_reading(ans: Any, pair: str) -> str:

@@ -37,6 +37,7 @@ from structures.shake_table_gap import CHANNELS as CHANNELS_ST
 from structures.shake_table_gap import shake_table_gap
 from structures.shake_table_report import figures as shake_table_figures
 from structures.shake_table_report import gap_table as shake_table_gap_table
+from structures.stripes import StripeAnalysis, multiple_stripe_analysis
 
 __all__ = ["STEPS", "step_calibrate", "step_compare", "step_gap", "step_propagate", "step_rubber",
            "step_shake_table", "step_tests", "step_validate"]
@@ -142,7 +143,8 @@ def step_compare(ctx: DemoContext, sec: Section) -> None:
     ctx.results["comparison"] = res
     sec.add_table("criteria", table, "elpd (higher is better), effective parameters p, standard error se, "
                   "se of the difference to the best dse and stacking weights, for PSIS-LOO, WAIC and "
-                  "leave-one-cycle-out (LOCO); k_max: largest Pareto k.")
+                  "leave-one-cycle-out (LOCO); k_max_loo and k_max_loco: largest Pareto k of PSIS-LOO and of "
+                  "LOCO (above 0.7 the PSIS estimate is unreliable).")
     sec.add_table("pareto_k", res.pareto_k.reset_index(), "Pareto k counts of PSIS-LOO per law.")
     sec.add_table("loco_cycles", res.loco_cycles, "Leave-one-cycle-out elpd per cycle and law.")
     sec.add_figure("elpd", res.figure(), "elpd +- se per law and criterion.")
@@ -198,6 +200,7 @@ def step_gap(ctx: DemoContext, sec: Section) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rep = diagnose_gap(tests["protocol1"], best, holdout=holdout, draws=s.gap_draws, seed=s.seed,
+                           effects=None if s.gap_effects is None else list(s.gap_effects),
                            progress=ctx.progress)
     ctx.results["gap"] = rep
     rows = []
@@ -259,35 +262,54 @@ def step_propagate(ctx: DemoContext, sec: Section) -> None:
     building = replace(example, isolator=Isolator(best, cal.map_params(), count=iso.count,
                                                   length_scale=iso.length_scale))
     records = tuple(s.records) if s.records is not None else tuple(available())
-    rs = propagate(cal, building, records, n_samples=s.n_samples, scales=s.scales, seed=s.seed,
+    rs = propagate(cal, building, records, n_samples=s.n_samples, scales=(1.0,), seed=s.seed,
                    progress=ctx.progress)
     summary = rs.summary()
     split = rs.variance_split()
     exceed = rs.exceedance()
     sec.add_table("runs", rs.table, f"One row per analysis: {s.n_samples} posterior draws of {best} x "
-                  f"{len(records)} records x {len(s.scales)} scale(s); prototype units (m, m/s^2, kN, kN m).")
+                  f"{len(records)} records as recorded (scale 1); prototype units (m, m/s^2, kN, kN m).")
     sec.add_table("percentiles", summary, "Median, 16/84 and 2.5/97.5 percentiles per record and over all "
-                  "records, per scale (converged runs).")
+                  "records, records as recorded (converged runs).")
     split_ok = split.dropna(subset=["share_params"])
     sec.add_table("variance_split", split_ok, "Share of Var(ln demand) explained by the isolator parameters "
                   "vs. the records (law of total variance); demands that are zero in some run have no "
                   "logarithm and are left out.")
-    sec.add_table("exceedance", exceed, "P(demand > limit) per record and over all records.")
-    if len(s.scales) > 1:
-        frs = rs.fragility()
-        sec.add_table("fragility", pd.DataFrame(
-            [{"demand": f.demand, "limit": f.limit, "theta": f.theta, "beta": f.beta,
-              "stripes": len(f.im), "note": f.note} for f in frs if np.isfinite(f.theta)]),
-            "Lognormal fragility curves fitted across the scales (maximum likelihood, Baker 2015); "
-            "curves that cannot be fitted (no or all runs exceeding) are left out.")
-        sec.add_figure("fragility", rs.plot_fragility(), "Fragility curves.")
-    scale = 1.0 if 1.0 in s.scales else s.scales[0]
-    sec.add_figure("distributions", rs.plot_distributions("iso_disp_peak_m", scale=scale),
-                   "Peak isolator displacement per record over the posterior draws.")
-    sec.add_figure("exceedance", rs.plot_exceedance("iso_disp_peak_m", scale=scale),
-                   "Exceedance curves of the peak isolator displacement.")
+    sec.add_table("exceedance", exceed, f"P(demand > limit) with the records as recorded: per record "
+                  f"over its {s.n_samples} posterior draws, and over all {len(records)} records x draws.")
+    sec.add_figure("distributions", rs.plot_distributions("iso_disp_peak_m", scale=1.0),
+                   "Peak isolator displacement per record over the posterior draws, records as recorded.")
+    sec.add_figure("exceedance", rs.plot_exceedance("iso_disp_peak_m", scale=1.0),
+                   f"Exceedance curves of the peak isolator displacement with the records AS RECORDED: each "
+                   f"thin curve over the {s.n_samples} posterior draws on one record, the thick one over all "
+                   f"records x draws. Not the fragility below, which is over records scaled to common "
+                   f"intensities.")
     sec.reading = prose.propagation_reading(rs, summary, exceed, split, building=s.building,
-                                            count=iso.count, law=best, scale=scale)
+                                            count=iso.count, law=best, scale=1.0)
+    # fragility: multiple stripe analysis at Sa(T_iso, 5 %) [g]
+    stripe_records = tuple(s.stripe_records) if s.stripe_records is not None else tuple(available())
+    msa = multiple_stripe_analysis(cal, building, stripe_records, n_levels=s.stripes,
+                                   n_samples=s.stripe_samples, seed=s.seed, progress=ctx.progress)
+    ctx.results["stripes"] = msa
+    frs = msa.fragility()
+    sec.add_table("fragility", fragility_table(msa, frs),
+                  f"Lognormal fragility P(D > limit | IM) = Phi(ln(IM / median) / beta) against "
+                  f"{msa.im.label}: maximum likelihood over the {len(msa.levels)} stripes (binomial counts, "
+                  f"Baker 2015); at each stripe every one of the {len(stripe_records)} records is scaled to "
+                  f"that intensity and runs {s.stripe_samples} posterior draws of {best}. T_iso: first "
+                  "period of the building with the posterior-median isolator at its secant stiffness at "
+                  "the displacement limit.")
+    sec.add_table("stripes", stripe_table(msa),
+                  f"The stripes: intensity {msa.im.name} [g], runs, and the share beyond each limit.")
+    sec.add_table("record_intensity", pd.DataFrame(
+        [{"record": r, f"{msa.im.name}_as_recorded_g": v,
+          "scale_factor_at_lowest_stripe": min(msa.levels) / v,
+          "scale_factor_at_highest_stripe": max(msa.levels) / v} for r, v in msa.record_im.items()]),
+                  f"Each record's own {msa.im.label} and the factors that bring it to the lowest and highest "
+                  "stripe.")
+    sec.add_figure("fragility", msa.plot_fragility(),
+                   f"Fragility curves against {msa.im.label}, with the share of each stripe's runs beyond "
+                   "the limit (points).")
     # both horizontal components at once: one bundled pair on the plan building (coupled isolator
     # law), nominal and ASCE 7-22 bound properties, the orbit against the design displacement
     pair = load_pair(ORBIT_PAIR)
@@ -307,6 +329,32 @@ def step_propagate(ctx: DemoContext, sec: Section) -> None:
                    "Isolator displacement y against x [m] under both components of the pair, with the "
                    "circle at the governing design displacement.")
     sec.reading += " " + prose.orbit_reading(ans, pair.name)
+    sec.reading += "\n\n" + prose.fragility_reading(msa, frs)
+
+
+def fragility_table(msa: StripeAnalysis, frs) -> pd.DataFrame:
+    """One row per demand limit: the fitted median [g] and beta, and the observed share beyond the
+    limit at the lowest and highest stripe (does the set of stripes span the curve?)."""
+    rows = []
+    for f in frs:
+        share = np.divide(f.z, f.n)
+        rows.append({"demand": f.demand, "limit": f.limit, "im": msa.im.name, "median_g": f.theta,
+                     "beta": f.beta, "stripes": len(f.im), "runs_per_stripe": int(max(f.n)),
+                     "share_at_lowest": float(share[int(np.argmin(f.im))]),
+                     "share_at_highest": float(share[int(np.argmax(f.im))]),
+                     "note": f.note or "-"})
+    return _na_as_text(pd.DataFrame(rows), ("median_g", "beta"))
+
+
+def stripe_table(msa: StripeAnalysis) -> pd.DataFrame:
+    """Per stripe: its intensity [g], its converged runs, and the share beyond each limit."""
+    ex = msa.responses.exceedance()
+    ex = ex[ex["record"] == "all records"]
+    wide = ex.pivot_table(index="scale", columns="demand", values="p_exceed", aggfunc="first")
+    wide.columns = [f"share_{c}_beyond_limit" for c in wide.columns]
+    n = ex.groupby("scale")["n"].max()
+    out = wide.assign(runs=n).reset_index().rename(columns={"scale": f"{msa.im.name}_g"})
+    return out[[out.columns[0], "runs", *wide.columns]]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -424,7 +472,7 @@ def tqdm_or_plain(iterable, progress: bool, **kw):
 
 STEPS: tuple[Step, ...] = (
     Step("tests", f"The bundled isolator tests ({SYNTHETIC})", step_tests),
-    Step("calibration", "Calibration of four laws on protocol 1", step_calibrate),
+    Step("calibration", "Calibration of the isolator laws on protocol 1", step_calibrate),
     Step("comparison", "Which law? LOO, WAIC and leave-one-cycle-out", step_compare),
     Step("validation", "The best law on held-out protocols 2-4", step_validate),
     Step("gap", "Sim-to-real gap: where, which effect, how much it shrinks", step_gap),

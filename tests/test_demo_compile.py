@@ -1,0 +1,50 @@
+"""A newcomer's first run compiles each kernel once: no second signature for the same call.
+
+Numba compiles a read-only array argument as a signature of its own.  A test's arrays are
+read-only, the calibration's input path is a writable copy, so predicting along a test used to
+compile the batched force kernel a second time (about 40 s of the cold `rrfrei demo --quick` for
+bouc_wen, measured with Numba's compile events).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba.core import types
+
+from rrfrei.calibration import setup_problem
+from rrfrei.calibration.likelihood import batch_kernels, law_forces
+from rrfrei.io import load_test
+from rrfrei.laws import get
+
+
+def _readonly_args(dispatcher) -> list:
+    """The dispatcher's signatures with a read-only array argument."""
+    return [sig for sig in dispatcher.signatures
+            if any(isinstance(a, types.Array) and not a.mutable for a in sig)]
+
+
+def test_forces_along_a_read_only_test_reuse_the_calibration_signature():
+    spec = get("plasticity")
+    test = load_test("protocol1")
+    assert not test.disp.flags.writeable  # a test's arrays are read-only
+    prob = setup_problem(test, spec)
+    P = np.atleast_2d(spec.pack({"k_init": 300.0, "qd": 1.5, "alpha1": 0.3, "alpha2": 0.0, "mu": 2.0}))
+    F_path, _ = prob.forces(P)
+    F_test, status = law_forces(spec, P, test)
+    assert status[0] == 0 and np.all(np.isfinite(F_test))
+    assert _readonly_args(batch_kernels(spec).forces_batch) == []
+
+
+def test_simulating_a_read_only_test_and_a_writable_history_share_one_signature():
+    """The gap step simulates along a test (read-only), the propagation step along a fresh array:
+    one compiled history driver serves both."""
+    from rrfrei import simulate_force
+    from rrfrei.laws.specialise import history
+
+    spec = get("plasticity")
+    test = load_test("protocol2")
+    p = {"k_init": 300.0, "qd": 1.5, "alpha1": 0.3, "alpha2": 0.0, "mu": 2.0}
+    f_ro = simulate_force("plasticity", p, test.disp, time=test.time)
+    f_rw = simulate_force("plasticity", p, np.array(test.disp), time=np.array(test.time))
+    np.testing.assert_array_equal(f_ro, f_rw)
+    assert _readonly_args(history(spec, False)) == []
