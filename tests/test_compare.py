@@ -37,8 +37,10 @@ def _cal(test, law, walkers, steps):
 
 @pytest.fixture(scope="module")
 def cals():
+    # plasticity's chain long enough to be past burn-in: PSIS on a transient (300 steps) gave one
+    # noise outlier k ~ 1.2 with the same number of stored draws, ~0.4 at 800 steps
     test = _test(protocol1, 5, "p1")
-    return {"plasticity": _cal(test, "plasticity", 24, 300), "linear": _cal(test, "linear", 8, 200)}
+    return {"plasticity": _cal(test, "plasticity", 24, 800), "linear": _cal(test, "linear", 8, 200)}
 
 
 def test_loo_ranks_the_generating_law_first_and_a_wrong_law_far_behind(cals):

@@ -53,7 +53,7 @@ class DemoSettings:
     shake_holdout: tuple[str, ...] = ("ICA100",)
     shake_law: str = "auto"
     shake_rate_hz: float = 25.0
-    shake_draws: int = 40
+    shake_draws: int = 30  # posterior draws per building fit (each one a simulation)
     shake_budget_s: float = 150.0
     shake_effects: tuple[str, ...] | None = None  # None: every catalogue effect
 

@@ -15,6 +15,7 @@ import pandas as pd
 
 from rrfrei.app.demo.context import SYNTHETIC
 from rrfrei.app.report import fmt
+from rrfrei.calibration.sampler import CONVERGENCE_RULE
 from rrfrei.gap.report import verdict_text
 
 
@@ -56,8 +57,8 @@ def calibration_reading(fits: pd.DataFrame, failed: dict[str, str], quick: bool)
         f"{len(fits)} laws were calibrated on protocol 1 ({SYNTHETIC}). The closest fit is "
         f"{best['law']} (NRMSE {pct(best['nrmse'])}, noise sd {fmt(best['sigma_kN'], 3)} kN, band "
         f"coverage {pct(best['coverage'])}); the loosest is {worst['law']} (NRMSE "
-        f"{pct(worst['nrmse'])}). {n_conv} of {len(fits)} chains met the convergence rule (>= 50 "
-        f"autocorrelation times, R-hat < 1.05)"
+        f"{pct(worst['nrmse'])}). {n_conv} of {len(fits)} chains met the convergence rule "
+        f"({CONVERGENCE_RULE})"
     )
     if n_conv < len(fits):
         bad = ", ".join(fits.loc[~fits["converged"], "law"])
@@ -279,12 +280,13 @@ def shake_table_reading(res: Any, *, quick: bool) -> str:
     rep = res.report
     ratio = max(res.extrapolation.values()) if res.extrapolation else float("nan")
     text = (
-        f"REAL data: the BNCS 5-story building on isolators. The isolator law ({res.law}) was fitted on "
-        f"the isolation-system loops of {', '.join(res.calibrate)} and the superstructure identified on "
-        f"{res.identified_on}; {', '.join(res.holdout)} takes the isolators to {fmt(ratio, 3)} times the "
+        f"REAL data: the BNCS 5-story building on isolators. The building (superstructure identified on "
+        f"{res.identified_on}, isolator law {res.law}) was calibrated by output error on "
+        f"{', '.join(res.calibrate)}; {', '.join(res.holdout)} takes the isolators to {fmt(ratio, 3)} "
+        "times the "
         f"largest calibrated displacement ({fmt(res.calibrated_peak, 3)} m)."
     )
-    text += " On the isolation tests: " + verdict_text(rep)
+    text += " On the simulated building: " + verdict_text(rep)
     if res.holdout:
         hb, ha = res.gap_before["holdout"], res.gap_after["holdout"]
         sh = res.shrink()["isolator_disp"]

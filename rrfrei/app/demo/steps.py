@@ -367,7 +367,7 @@ def step_shake_table(ctx: DemoContext, sec: Section) -> None:
         res = shake_table_gap(None, calibrate=list(s.shake_calibrate), holdout=list(s.shake_holdout),
                               law=s.shake_law, rate_hz=s.shake_rate_hz, n_draws=s.shake_draws,
                               effects=None if s.shake_effects is None else list(s.shake_effects),
-                              draws=max(60, s.shake_draws), seed=s.seed, time_budget=s.shake_budget_s,
+                              draws=s.shake_draws, seed=s.seed, time_budget=s.shake_budget_s,
                               progress=ctx.progress)
     ctx.results["shake_table"] = res
     cal, held = ", ".join(res.calibrate), ", ".join(res.holdout)
@@ -383,8 +383,9 @@ def step_shake_table(ctx: DemoContext, sec: Section) -> None:
                          for e in res.report.ranking])
     if len(rank):
         sec.add_table("ranking", _na_as_text(rank, ("delta_holdout", "se_holdout", "shrink_holdout")),
-                      "Each catalogue effect added to the isolator law, on the isolation tests (force given "
-                      "the measured displacement; held-out runs predicted after the runs before them).")
+                      "Each candidate effect (the catalogue's isolator effects and the system effects) "
+                      "added to the building, fitted by output error on the calibration runs and judged "
+                      "on the held-out runs' simulated responses.")
     checked = res.building_check.dropna(subset=list(CHANNELS_ST)) if len(res.building_check) else []
     if len(checked):  # a candidate whose analysis failed is named in the notes instead
         sec.add_table("building_check", checked,
