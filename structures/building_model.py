@@ -115,6 +115,25 @@ ZETA_BOX = (0.0, 0.2)
 """Bounds of the superstructure damping ratio (20 %: beyond any reinforced-concrete frame)."""
 
 
+def concatenate_runs(runs: Sequence[ShakeTableRun], pad_s: float,
+                     dt: float) -> tuple[np.ndarray, dict[str, slice]]:
+    """The runs' table accelerations [m/s^2] one after the other, ``pad_s`` [s] of rest between
+    two, and each run's slice of the result (the runs share the sample interval ``dt`` [s])."""
+    npad = int(round(pad_s / dt))
+    parts: list[np.ndarray] = []
+    slices: dict[str, slice] = {}
+    i0 = 0
+    for r in runs:
+        if parts:
+            parts.append(np.zeros(npad))
+            i0 += npad
+        a = np.asarray(r.table_accel, dtype=float)
+        parts.append(a)
+        slices[r.name] = slice(i0, i0 + a.size)
+        i0 += a.size
+    return np.concatenate(parts), slices
+
+
 def measured_channels(run: ShakeTableRun) -> dict[str, np.ndarray]:
     """The :data:`REPORT_CHANNELS` of ``run`` as measured."""
     return {"isolator_disp": np.asarray(run.isolator_disp, dtype=float),
@@ -194,18 +213,10 @@ class BuildingData:
         last = max(names.index(o) for o in obs)
         object.__setattr__(self, "runs", runs[: last + 1])
         object.__setattr__(self, "observed", tuple(n for n in names if n in obs))
-        npad = int(round(self.pad_s / dt))
-        parts, slices, i0 = [np.zeros(1)], {}, 1  # the record starts at rest
-        for r in self.runs:
-            if i0 > 1:
-                parts.append(np.zeros(npad))
-                i0 += npad
-            a = np.asarray(r.table_accel, dtype=float)
-            parts.append(a)
-            slices[r.name] = slice(i0, i0 + a.size)
-            i0 += a.size
-        object.__setattr__(self, "_ag", np.concatenate(parts))
-        object.__setattr__(self, "_slices", slices)
+        acc, slices = concatenate_runs(self.runs, self.pad_s, dt)
+        # the record starts at rest: one leading zero sample, every slice shifted by it
+        object.__setattr__(self, "_ag", np.concatenate([[0.0], acc]))
+        object.__setattr__(self, "_slices", {k: slice(v.start + 1, v.stop + 1) for k, v in slices.items()})
         object.__setattr__(self, "_meas", {r.name: measured_channels(r) for r in self.runs
                                            if r.name in self.observed})
 

@@ -68,6 +68,7 @@ from structures.building_model import (
     BuildingFit,
     BuildingModel,
     calibration_test,
+    concatenate_runs,
 )
 from structures.history import ConvergenceError, time_history
 from structures.identify import identify_superstructure
@@ -223,17 +224,7 @@ def predict_sequence(building: ShearBuilding, P: np.ndarray, runs: Sequence[Shak
         if abs(r.dt - dt) > 1e-9 * dt:
             raise ValueError(f"runs {runs[0].name!r} ({1 / dt:g} Hz) and {r.name!r} ({r.rate_hz:g} Hz) have "
                              "different sampling rates; resample them to one rate")
-    npad = int(round(pad_s / dt))
-    parts, slices, i0 = [], {}, 0
-    for r in runs:
-        if parts:
-            parts.append(np.zeros(npad))
-            i0 += npad
-        a = np.asarray(r.table_accel, dtype=float)
-        parts.append(a)
-        slices[r.name] = slice(i0, i0 + a.size)
-        i0 += a.size
-    acc = np.concatenate(parts)
+    acc, slices = concatenate_runs(runs, pad_s, dt)
     record = Record("+".join(r.name for r in runs), dt, np.concatenate([[0.0], acc]))  # start at rest
     sims: dict[str, dict[str, list]] = {r.name: {c: [] for c in CHANNELS} for r in runs}
     failures: list[str] = []
