@@ -67,7 +67,7 @@ from rrfrei._json import number as _num
 
 __all__ = ["ALPHA", "BOOT", "EXCESS", "LEVEL", "MIN_GAIN", "MIN_SHRINK", "SYS_FLOOR", "WINDOWS", "BlockParts",
            "RankEvidence", "ShrinkEvidence", "Residual", "blocks", "block_parts", "sign_test",
-           "wilcoxon_test", "rank_evidence", "shrink_ci", "significant", "residual_state"]
+           "wilcoxon_test", "min_blocks", "rank_evidence", "shrink_ci", "significant", "residual_state"]
 
 ALPHA = 0.01
 """Level of the block test of one effect (0.05 over ~5 effects, Bonferroni)."""
@@ -224,6 +224,17 @@ class RankEvidence:
     def as_dict(self) -> dict:
         return {"blocks": self.blocks, "positive": self.positive, "total_gain": _num(self.total),
                 "p_sign": _num(self.p_sign), "p_wilcoxon": _num(self.p_wilcoxon)}
+
+
+def min_blocks(alpha: float = ALPHA) -> int:
+    """Fewest blocks on which the rank tests can pass at all: with every one of ``m`` blocks
+    gaining, the one-sided sign test and the exact signed-rank test both give ``p = 2^-m``, so the
+    rule's ``rank_p < alpha / 2`` needs ``m >= log2(2 / alpha)`` (8 at ``ALPHA``).  On fewer blocks
+    no effect can be named, however much it closes."""
+    m = 1
+    while 0.5**m >= alpha / 2:
+        m += 1
+    return m
 
 
 def rank_evidence(gains) -> RankEvidence:

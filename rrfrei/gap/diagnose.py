@@ -632,6 +632,24 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
                          checkpoint=checkpoint)
 
 
+def _too_few_blocks(sc: _Scorer) -> str:
+    """The note saying that the block rule cannot name any effect because the calibration data or
+    the held-out data give fewer blocks than its rank tests need (:func:`rrfrei.gap.decision.min_blocks`);
+    "" when both give enough."""
+    need = dec.min_blocks()
+    n_cal = int(np.unique(sc.g_cal).size)
+    n_ho = sum(int(np.unique(g).size) for g in sc.g_ho)
+    short = [f"the calibration data give {n_cal}"] if n_cal < need else []
+    if sc.holdout and n_ho < need:
+        short.append(f"the held-out data give {n_ho}")
+    if not short:
+        return ""
+    return (f"no effect can be named: {' and '.join(short)} blocks, and the block rule's rank tests "
+            f"need at least {need} (every block gaining gives p = 2^-blocks, against p < {dec.ALPHA / 2:g}); "
+            "a verdict of none or unexplained here does not mean that no effect closes the gap: give "
+            "longer or more runs")
+
+
 def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combine, max_combination,
               progress, time_budget, checkpoint) -> GapReport:
     # a model may offer candidates of its own besides the catalogue's (the building's system effects)
@@ -647,6 +665,9 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
     skipped: dict[str, str] = {}
     untried: dict[str, str] = {}
     sc = _Scorer(model, data, holdout, seed)
+    few = _too_few_blocks(sc)
+    if few and effects:
+        notes.append(Note(few, "critical"))
     bar = progress_bar(1 + len(effects), f"gap {model.name}", enabled=progress, unit="step")
     with bar:
         bar.set_postfix_str("baseline")
