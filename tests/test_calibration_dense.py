@@ -126,9 +126,10 @@ def test_a_chain_stopped_at_the_step_cap_says_so_and_advises_raising_it():
     ("time_budget", ["time budget of 300 s", "3100 steps", "--checkpoint", "raise --time-budget"],
      ["step cap"]),
     ("steps", ["400 fixed steps", "leave out --steps"], ["step cap", "time budget"]),
-    # the rule held but the final check of the thinned draws did not: a rerun with the same
-    # command would stop at once (the chain meets the rule), so the advice asks for more --steps
-    ("converged", ["final R-hat < 1.05", "--steps 5000", "--checkpoint"], ["step cap", "time budget"]),
+    # a 'converged' chain whose stored draws fail the check cannot happen any more (the stopping
+    # rule is the final check); the advice then states the one rule and asks for more --steps
+    ("converged", ["the convergence rule", "R-hat 2.160", "--steps 5000", "--checkpoint"],
+     ["step cap", "time budget"]),
 ])
 def test_the_advice_matches_why_the_chain_stopped(why, expected, never):
     d = {"stopped_by": why, "steps": {"max_steps": 20000, "time_budget": 3100, "steps": 400}.get(why, 2500),
