@@ -21,10 +21,9 @@ from structures.shake_table_synthetic import (
 LINEAR = SyntheticBuilding(qd=0.0, alpha=0.1, c_iso=40.0)  # isolators: 2000 kN/m + 40 kN s/m
 
 
-def _openseespy_linear(b: SyntheticBuilding, ag: np.ndarray, dt: float) -> np.ndarray:
+def _openseespy_linear(ops, b: SyntheticBuilding, ag: np.ndarray, dt: float) -> np.ndarray:
     """Relative displacements (n, L) [m] of the linear building by openseespy (1-D, zero-length
     springs and dashpots, Newmark average acceleration at dt / 10)."""
-    ops = pytest.importorskip("openseespy.opensees")
     ops.wipe()
     ops.model("basic", "-ndm", 1, "-ndf", 1)
     L = len(b.masses)
@@ -60,10 +59,10 @@ def _openseespy_linear(b: SyntheticBuilding, ag: np.ndarray, dt: float) -> np.nd
     return out
 
 
-def test_linear_building_is_the_openseespy_building():
+def test_linear_building_is_the_openseespy_building(ops):
     ag, _ = table_motion(8.0, 50.0, seed=3)
     ag = 2.0 * ag
-    d_ops = _openseespy_linear(LINEAR, ag, 0.02)
+    d_ops = _openseespy_linear(ops, LINEAR, ag, 0.02)
     d, a, f, _ = simulate_building(LINEAR, ag, 0.02)
     peak = np.max(np.abs(d_ops), axis=0)
     assert np.max(np.abs(d - d_ops) / peak) < 5e-4
