@@ -12,6 +12,7 @@ from pathlib import Path
 from rrfrei.app.commands import shake_table_meta
 from rrfrei.budget import seconds_arg
 from rrfrei.laws import get
+from rrfrei.notes import Note
 from structures.shake_table import ConsistencyWarning
 from structures.shake_table_gap import BNCS_ORDER, shake_table_gap
 from structures.shake_table_report import write_report
@@ -121,7 +122,7 @@ def run(args) -> int:
         if issubclass(w.category, ConsistencyWarning):
             print(f"rrfrei shake-table: warning: {w.message}", file=sys.stderr)
     if reader_notes:  # the reader's warnings bear on every number: first in the notes
-        res = replace(res, notes=(*(f"reading: {n}" for n in reader_notes), *res.notes))
+        res = replace(res, notes=(*(Note(f"reading: {n}", "warning") for n in reader_notes), *res.notes))
     rep = res.report
     for e, why in rep.skipped.items():
         print(f"rrfrei shake-table: effect {e} skipped: {why}", file=sys.stderr)
