@@ -20,6 +20,7 @@ HERE = Path(__file__).resolve().parent
 
 #: Order: the cheap per-core comparisons first, the long multi-core and whole-command runs last.
 SCRIPTS = ("spectra", "laws", "plan_laws", "time_history", "plan_building", "rubber", "calibration",
+           "convergence",
            "propagation", "gap",
            "shake_table", "rubber_multirate", "fresh_clone")
 #: Sections written by a mode of another script (no --quick mode: skipped by a smoke run).

@@ -1,11 +1,13 @@
 """Sim-to-real gap diagnosis for the PRF model (issue 7, point 6): which unmodelled effect explains
 where a calibrated PRF model misses a held-out protocol.
 
-The model family is a :class:`rrfrei.gap.GapModel` (:class:`RubberModel`), so the generic engine's
-interface is kept; but PRF fits are optimizer fits (CMA-ES from :mod:`rubber.fit`, then bounded least
-squares) without a posterior, so the engine's leave-one-cycle-out PSIS ranking does not apply.  The
-ranking here (:func:`rank_effects`) uses what an optimizer fit has: an information criterion on the
-calibration data and the error on held-out protocols.
+The model family is a :class:`rrfrei.gap.GapModel` (:class:`RubberModel`): PRF fits are optimizer
+fits (CMA-ES from :mod:`rubber.fit`, then bounded least squares) with importance-corrected Laplace
+draws, so the one gap engine, :func:`rrfrei.gap.diagnose`, diagnoses rubber as it diagnoses isolators
+and buildings (block rule over loading cycles, held-out shrink with its interval; the candidates are
+this catalogue's, :attr:`RubberModel.candidate_effects`).  :func:`rank_effects` is the optimiser-only
+ranking of ``python -m rubber gap``: an information criterion on the calibration data and the error
+on held-out protocols, for protocols too short for the block rule.
 
 Effect catalogue (:data:`EFFECTS`), both acting on the equilibrium (Yeoh) network only; the viscous
 Bergstrom-Boyce chains see the total stretch as before, so the effects post-process the equilibrium

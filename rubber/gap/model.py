@@ -1,14 +1,19 @@
 """The PRF model as a gap-engine model family: :class:`RubberModel` and its optimum :class:`RubberFit`.
 
-PRF fits are optimizer fits (CMA-ES from :mod:`rubber.fit`, then bounded least squares) without a
-posterior; the model keeps the engine's interface (:class:`rrfrei.gap.GapModel`).  Units: MPa, s.
+PRF fits are optimizer fits (CMA-ES from :mod:`rubber.fit`, then bounded least squares) with a
+Laplace approximation at the optimum: in the unit coordinates ``z`` of the search, covariance
+``(J^T J / s^2 + I)^-1`` (``J`` the Jacobian of the weighted residuals, ``s^2`` their variance, the
+unit ridge a standard-normal prior on the box's scale), from which :data:`DRAWS` parameter sets are
+drawn.  The model is a :class:`rrfrei.gap.GapModel` the one engine (:func:`rrfrei.gap.diagnose`)
+scores like the isolator and the building models: per-draw log-likelihoods for its leave-one-out
+and block rule, predictions with a band.  Units: MPa, s.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import norm as _norm
@@ -37,6 +42,8 @@ LSQ_EVALS_PER_DIM2 = 20
 Jacobian's evaluations, and with slow (stiff) parameter sets a run could otherwise go on for an
 hour; the best point evaluated is returned."""
 Z_BAND = float(_norm.ppf(0.5 + LEVEL / 2))  # 1.96 for LEVEL = 0.95
+DRAWS = 40
+"""Laplace draws of a fit (each one a PRF simulation per test when predicting)."""
 
 
 
@@ -50,10 +57,11 @@ def _tests(data) -> list[Test]:
 
 @dataclass(frozen=True)
 class RubberFit(FitResult):
-    """Optimum of a PRF model (with effects) fitted to uniaxial tests; no posterior.
+    """Optimum of a PRF model (with effects) fitted to uniaxial tests, and its Laplace draws.
 
-    ``predict`` returns the optimum's prediction with a band of +- 1.96 ``sigma`` (the RMS residual on
-    the calibration data); ``loglik`` is the Gaussian log density at the optimum.  ``rss`` is the
+    ``predict`` returns the optimum's prediction with a band of +- 1.96 sqrt(``sigma``^2 + the draws'
+    variance) (``sigma`` the RMS residual on the calibration data); ``loglik`` is the Gaussian log
+    density of each draw (rows; the optimum alone when there are no draws).  ``rss`` is the
     weighted residual sum of squares of :func:`rubber.objective` (sum over tests of
     sum (s_exp - s_pred)^2 / sum s_exp^2), ``n`` data points, ``k`` free parameters.
     """
@@ -67,6 +75,9 @@ class RubberFit(FitResult):
     n: int
     k: int
     rtol: float = 1e-6
+    draws: tuple = ()  # ((PRFParams, effect params), ...): Laplace draws; () = the optimum only
+    ess: float = float("nan")  # importance effective sample size of the draws (of DRAWS)
+    _memo: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def params(self) -> dict[str, float]:  # type: ignore[override]
@@ -86,16 +97,43 @@ class RubberFit(FitResult):
         return np.concatenate([augmented_stress(self.prf, t.time, t.stretch, self.effect_params,
                                                 rtol=self.rtol) for t in _tests(data)])
 
+    def draw_stress(self, data) -> np.ndarray:
+        """(S, n) nominal stress (MPa) of each Laplace draw (the optimum alone without draws);
+        a draw the integrator cannot follow gives the optimum's stress (counted in ``failed_draws``)."""
+        tests = _tests(data)
+        key = tuple(id(t) for t in tests)
+        if key not in self._memo:
+            f0 = self.stress(tests)
+            rows, failed = [], 0
+            for prf, ep in self.draws:
+                try:
+                    f = np.concatenate([augmented_stress(prf, t.time, t.stretch, ep, rtol=self.rtol)
+                                        for t in tests])
+                    ok = np.all(np.isfinite(f))
+                except (*_EVAL_ERRORS, ValueError, RuntimeError):
+                    ok = False
+                failed += not ok
+                rows.append(f if ok else f0)
+            # the tests are kept so that their ids stay theirs
+            self._memo[key] = (np.array(rows) if rows else f0[None, :], failed, tests)
+        return self._memo[key][0]
+
+    def failed_draws(self, data) -> int:
+        """How many Laplace draws the integrator could not follow on ``data``."""
+        self.draw_stress(data)
+        return self._memo[tuple(id(t) for t in _tests(data))][1]
+
     def predict(self, data) -> Prediction:
         f = self.stress(data)
-        h = Z_BAND * self.sigma
-        return Prediction(mean=f, lower=f - h, upper=f + h, draws=f[None, :], sigma=np.array([self.sigma]))
+        d = self.draw_stress(data)
+        h = Z_BAND * np.sqrt(self.sigma**2 + (d.var(axis=0) if d.shape[0] > 1 else 0.0))
+        return Prediction(mean=f, lower=f - h, upper=f + h, draws=d, sigma=np.full(d.shape[0], self.sigma))
 
     def loglik(self, data) -> np.ndarray:
         y = np.concatenate([t.stress for t in _tests(data)])
-        r = y - self.stress(data)
+        r = y[None, :] - self.draw_stress(data)
         s = self.sigma
-        return (-0.5 * (r / s) ** 2 - math.log(s) - 0.5 * math.log(2 * math.pi))[None, :]
+        return -0.5 * (r / s) ** 2 - math.log(s) - 0.5 * math.log(2 * math.pi)
 
 
 class RubberModel(GapModel):
@@ -147,6 +185,12 @@ class RubberModel(GapModel):
     def name(self) -> str:  # type: ignore[override]
         return "+".join(("prf", *self.effects))
 
+    @property
+    def candidate_effects(self) -> tuple[str, ...]:
+        """The effects :func:`rrfrei.gap.diagnose` tries on this model: the PRF catalogue
+        (:data:`rubber.gap.EFFECTS`), not the isolator laws'."""
+        return tuple(EFFECTS)
+
     def augment(self, effects: Sequence[str]) -> RubberModel:
         return RubberModel((*self.effects, *[e for e in effects if e not in self.effects]), fixed=self.fixed,
                            bounds=self.bounds, start=self.start, restarts=self.restarts,
@@ -172,17 +216,22 @@ class RubberModel(GapModel):
         return np.concatenate(out)
 
     # --- fitting ---------------------------------------------------------------------------
-    def fit(self, data, *, seed: int = 0, start: FitResult | None = None) -> RubberFit:
-        """Optimum of the PRF (and effect) parameters on ``data`` (a Test or list of Tests)."""
+    def fit(self, data, *, seed: int = 0,
+            start: FitResult | Sequence[FitResult] | None = None) -> RubberFit:
+        """Optimum of the PRF (and effect) parameters on ``data`` (a Test or list of Tests), from
+        the global search or, given ``start`` (a RubberFit or several, as the gap engine passes
+        them), by least squares from each start's PRF parameters (and effect parameters it has)."""
         tests = _tests(data)
         space = _Space(tuple(n for n in PARAM_NAMES if n not in self.fixed),
                        _resolve_bounds(self.bounds, tests), self.fixed)
         eff = [(e, i) for e in self.effects for i in range(len(EFFECTS[e].params))]
         if start is not None:
-            if not isinstance(start, RubberFit):
-                raise ValueError(f"start = {type(start).__name__}: expected a RubberFit")
-            base_x = [_x_of(space, start.prf)]
-            known = dict(start.effect_params)
+            given = [start] if isinstance(start, FitResult) else list(start)
+            if not given or not all(isinstance(f, RubberFit) for f in given):
+                kinds = sorted({type(f).__name__ for f in given}) or ["empty"]
+                raise ValueError(f"start = {', '.join(kinds)}: expected a RubberFit or a list of them")
+            base_x = [_x_of(space, f.prf) for f in given]
+            known = {k: v for f in given for k, v in f.effect_params.items()}
         else:
             base_x, known = self._global(space, tests, seed), {}
         starts = [[]]
@@ -210,8 +259,67 @@ class RubberModel(GapModel):
                                 for t in tests])
         noise = float(np.sqrt(np.mean([white_noise(t.stress - augmented_stress(
             prf, t.time, t.stretch, ep, rtol=self.rtol)) ** 2 for t in tests])))
+        draws, ess = self._laplace_draws(space, eff, tests, z, float(rss), int(n), seed)
         return RubberFit(name=self.name, prf=prf, effect_params=ep, sigma=float(np.sqrt(np.mean(resid**2))),
-                         noise=noise, rss=float(rss), n=int(n), k=nb + len(eff), rtol=self.rtol)
+                         noise=noise, rss=float(rss), n=int(n), k=nb + len(eff), rtol=self.rtol,
+                         draws=draws, ess=ess)
+
+    def _laplace_draws(self, space: _Space, eff, tests: list[Test], z: np.ndarray, rss: float, n: int,
+                       seed: int) -> tuple[tuple, float]:
+        """:data:`DRAWS` parameter sets from the Laplace approximation at the optimum ``z`` (unit
+        coordinates) corrected by importance sampling, and the importance effective sample size.
+
+        Proposal: covariance (J^T J / s^2 + I)^-1, J by forward differences (step 1e-6, taken inward
+        at a bound), s^2 = rss / (n - k); draws outside the box are clipped to it, draws the PRF
+        model rejects are redrawn (at most 20 DRAWS tries).  Each draw is weighted by the exact
+        Gaussian likelihood exp(-rss(z) / 2 s^2) over the proposal density, and DRAWS equally
+        weighted draws are resampled (systematic resampling).  The PRF model is far from linear in
+        its parameters: an ESS of a few draws says that the posterior is much narrower than the
+        Laplace proposal, and the band then rests on the residual scale ``sigma``."""
+        k, nb = z.size, len(space.free)
+        resid = self._residuals(space, eff, tests)
+        r0 = resid(z)
+        J = np.empty((r0.size, k))
+        for j in range(k):
+            h = 1e-6 if z[j] + 1e-6 <= 1.0 else -1e-6
+            zj = z.copy()
+            zj[j] += h
+            J[:, j] = (resid(zj) - r0) / h
+        s2 = rss / max(n - k, 1)
+        if not (np.all(np.isfinite(J)) and s2 > 0.0):
+            return (), float("nan")
+        A = J.T @ J / s2 + np.eye(k)
+        w, V = np.linalg.eigh(0.5 * (A + A.T))
+        L = V / np.sqrt(np.maximum(w, 1.0))  # cov = L L^T (eigenvalues clipped at the ridge)
+        rng = np.random.default_rng([int(seed), 0x52554242])
+        zs, log_w = [], []
+        for _ in range(20 * DRAWS):
+            if len(zs) == DRAWS:
+                break
+            u = rng.standard_normal(k)
+            zd = np.clip(z + L @ u, 1e-9, 1 - 1e-9)
+            try:
+                space.params(zd[:nb])
+            except ValueError:
+                continue
+            rd = resid(zd)  # importance weight: exact Gaussian likelihood over the Laplace density
+            log_w.append(-0.5 * float(rd @ rd) / s2 + 0.5 * float(u @ u))
+            zs.append(zd)
+        if not zs:
+            return (), float("nan")
+        lw = np.array(log_w)
+        w = np.exp(lw - lw.max())
+        w /= w.sum()
+        ess = float(1.0 / np.sum(w**2))
+        # sampling-importance-resampling (systematic): equally weighted draws for the engine
+        idx = np.minimum(np.searchsorted(np.cumsum(w), (rng.random() + np.arange(DRAWS)) / DRAWS),
+                         len(zs) - 1)
+        out = []
+        for i in idx:
+            zd = zs[int(i)]
+            out.append((space.params(zd[:nb]),
+                        {EFFECTS[e].params[j]: _from_unit(e, j, v) for (e, j), v in zip(eff, zd[nb:])}))
+        return tuple(out), ess
 
     def _global(self, space: _Space, tests: list[Test], seed: int) -> list[np.ndarray]:
         if self.max_evals == 0:
@@ -224,8 +332,9 @@ class RubberModel(GapModel):
                           self.rtol, None)) for i, x0 in enumerate(x0s)]
         return [min(runs, key=lambda r: r[1])[0]]
 
-    def _lsq(self, space: _Space, eff, tests: list[Test], z0: np.ndarray) -> tuple[np.ndarray, float]:
-
+    def _residuals(self, space: _Space, eff, tests: list[Test]):
+        """z -> residuals weighted as :func:`rubber.objective` (each test by its RMS stress); a
+        point the integrator cannot follow gives large residuals, never an exception."""
         nb = len(space.free)
         scale = [math.sqrt(float(np.sum(t.stress**2))) for t in tests]
         big = math.sqrt(FAIL_F / sum(t.time.size for t in tests))
@@ -251,6 +360,10 @@ class RubberModel(GapModel):
                     out.append((t.stress - f) / sc)
             return np.concatenate(out)
 
+        return _resid
+
+    def _lsq(self, space: _Space, eff, tests: list[Test], z0: np.ndarray) -> tuple[np.ndarray, float]:
+        _resid = self._residuals(space, eff, tests)
         k = z0.size
         budget = LSQ_EVALS_PER_DIM2 * (1 + k) ** 2  # evaluations, finite-difference Jacobians included
         z, cost, _ = least_squares_best(_resid, z0, stop=lambda n: n >= budget, x_scale=1.0, diff_step=1e-6,
