@@ -719,7 +719,8 @@ class BuildingModel(GapModel):
 
     def _starts(self, start) -> list[dict[str, float]]:
         """Start points (dicts of parameter values): from fits given (their parameters, with each
-        added effect at the catalogue's starts and its neutral value), else from the loop fit."""
+        added effect at the catalogue's start and, when no global search follows, also at its
+        neutral value: the global search's box holds both), else from the loop fit."""
         sc = test_scales(self.start_test)
         bases: list[dict[str, float]] = []
         for s in ([start] if isinstance(start, FitResult) else list(start or [])):
@@ -728,6 +729,8 @@ class BuildingModel(GapModel):
             b = dict(self._base_values())
             b.update({"k_scale": 1.0, "zeta": self.sup.zeta})
             bases = [b, dict(b, k_scale=1.2, zeta=min(3 * self.sup.zeta, 0.25))]
+        alternatives = start is None or self.refit_global_evals <= 0
+        c_iso_new = not all("c_iso" in b for b in bases)
         out = []
         for b in bases:
             b = dict(b)
@@ -741,10 +744,11 @@ class BuildingModel(GapModel):
                 es = info.scales(sc)
                 if any(k not in b for k in es):
                     neutral = dict(zip([q.name for q in info.spec.params], info.spec.neutral))
-                    opts = [dict(o, **e) for o in opts for e in [*info.starts(sc)[:1], neutral]]
-            if "c_iso" in self.layout.system and "c_iso" not in (start.params if isinstance(start, FitResult)
-                                                                   else {}):
-                opts = [dict(o, c_iso=v) for o in opts for v in (0.0, 0.02 * sc.force / sc.vel)]
+                    alts = [*info.starts(sc)[:1], neutral] if alternatives else info.starts(sc)[:1]
+                    opts = [dict(o, **e) for o in opts for e in alts]
+            if "c_iso" in self.layout.system and c_iso_new:
+                c0 = 0.02 * sc.force / sc.vel
+                opts = [dict(o, c_iso=v) for o in opts for v in ((0.0, c0) if alternatives else (c0,))]
             out.extend(dict(b, **o) for o in opts)
         return out
 

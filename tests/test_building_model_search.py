@@ -129,3 +129,17 @@ def test_the_fit_reports_the_robust_solves_deviations(truth, monkeypatch):
     assert f"at {2 * fit.nfev} time steps of {fit.nfev} of {fit.nfev} simulations" in fit.note
     state = m.fit_state(fit)
     assert m.restore(state).robust_sims == fit.robust_sims
+
+
+def test_with_a_global_search_a_refit_starts_once_per_given_fit(truth):
+    """The global search's box holds the added effect's neutral value, so the local screen starts
+    once per given fit (the effect at the catalogue's start); without a global search it starts
+    at the neutral value too."""
+    b, runs = truth
+    m = _model(runs, Superstructure.of(b), PL)
+    base = m.fit(BuildingData(tuple(runs), observed=("run1",)), seed=0)
+    aug = m.augment(["isolation_damping"])
+    starts = aug._starts([base])
+    assert len(starts) == 1 and starts[0]["c_iso"] > 0.0
+    aug.refit_global_evals = 0
+    assert sorted(s["c_iso"] > 0.0 for s in aug._starts([base])) == [False, True]
