@@ -43,20 +43,29 @@ wide: the building's errors (a period or damping a few percent off) grow with th
 constant sd measured on the calibration runs would give held-out runs beyond the calibrated range
 a band too narrow for them.
 
-Search: least squares (``scipy.optimize.least_squares``, trust-region reflective, bounded, in
-coordinates scaled by each parameter's typical size) from several starts: the isolator loop fit
-(equation error, force given the measured displacement) with the identified superstructure, and
-that start with the superstructure's stiffness and damping at the ends of their plausible range;
-every start runs a short screen, the best continues (the multi-start of
-:class:`rrfrei.gap.model.IsolatorModel`).  Posterior: Laplace, ``N(x*, (J^T W J + I)^-1)`` with
-the tempered weights W and a unit ridge in scaled coordinates, checked by importance sampling
-(weights = tempered likelihood over the Gaussian proposal; its effective sample size is reported
-in :attr:`BuildingFit.ess`) and resampled.  Predictive band: every draw's simulation plus
-N(0, sigma_c^2) per channel.
+Search: a global start, then least squares.  The global start is CMA-ES (Hansen 2016, the
+``cma`` package) on the sum of squares, in coordinates scaled by each parameter's typical size,
+over a box of +-:data:`GLOBAL_BOX` scaled units around its start within the bounds: for a fit from
+the isolator loop fit (equation error, force given the measured displacement) over every
+parameter (:data:`GLOBAL_EVALS` simulations); for the refit of an added effect from a fitted
+building over the effect's parameters and the superstructure's stiffness scale and damping, the
+fitted law held (:data:`REFIT_GLOBAL_EVALS`), so the refit is not confined to the basin of the
+effect's one start.  Its best point joins the local starts: the loop fit with the identified
+superstructure and with a stiffer, more damped one (or the given fits with the effect at the
+catalogue's start); each start runs a short screen of least squares
+(``scipy.optimize.least_squares``, trust-region reflective, bounded, same scaled coordinates),
+the best continues (the multi-start of :class:`rrfrei.gap.model.IsolatorModel`).
 
-A simulation whose Newton fails (the law's local solve or the building step, also after the
-kernel's subdivisions) is a bad point of the optimiser (a large constant residual) and a dropped
-draw of the posterior, never an exception; the count is reported in the fit's note.
+Posterior: Laplace, ``N(x*, (J^T W J + I)^-1)`` with the tempered weights W and a unit ridge in
+scaled coordinates, checked by importance sampling (weights = tempered likelihood over the
+Gaussian proposal; its effective sample size is reported in :attr:`BuildingFit.ess`) and
+resampled. Predictive band: every draw's simulation plus N(0, sigma_c^2) per channel.
+
+Every simulation has the robust local solve: where OpenSees' local iteration of the law fails
+even at the last subdivision of a step, the law's bracketed, safeguarded Newton solves it (a
+deviation from OpenSees, counted in :attr:`BuildingFit.robust_sims` and the fit's note).  A
+simulation that fails even so is a bad point of the optimiser (a large constant residual) and a
+dropped draw of the posterior, never an exception; the count is reported in the fit's note.
 """
 
 from __future__ import annotations
