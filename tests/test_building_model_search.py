@@ -143,3 +143,14 @@ def test_with_a_global_search_a_refit_starts_once_per_given_fit(truth):
     assert len(starts) == 1 and starts[0]["c_iso"] > 0.0
     aug.refit_global_evals = 0
     assert sorted(s["c_iso"] > 0.0 for s in aug._starts([base])) == [False, True]
+
+
+def test_the_global_start_searches_a_single_coordinate_too():
+    """One free coordinate (CMA-ES needs two: a dummy one is added): a better point, the other
+    coordinate held."""
+    a = np.array([1.0, -1.0])
+    resid = _rastrigin(a)
+    x0 = a + np.array([1.9, 0.0])
+    xg = bm._cma_start(resid, x0, a - 10.0, a + 10.0, np.array([True, False]), 200, seed=0)
+    assert xg is not None and xg[1] == x0[1]
+    assert resid(xg) @ resid(xg) < resid(x0) @ resid(x0)
