@@ -43,20 +43,29 @@ wide: the building's errors (a period or damping a few percent off) grow with th
 constant sd measured on the calibration runs would give held-out runs beyond the calibrated range
 a band too narrow for them.
 
-Search: least squares (``scipy.optimize.least_squares``, trust-region reflective, bounded, in
-coordinates scaled by each parameter's typical size) from several starts: the isolator loop fit
-(equation error, force given the measured displacement) with the identified superstructure, and
-that start with the superstructure's stiffness and damping at the ends of their plausible range;
-every start runs a short screen, the best continues (the multi-start of
-:class:`rrfrei.gap.model.IsolatorModel`).  Posterior: Laplace, ``N(x*, (J^T W J + I)^-1)`` with
-the tempered weights W and a unit ridge in scaled coordinates, checked by importance sampling
-(weights = tempered likelihood over the Gaussian proposal; its effective sample size is reported
-in :attr:`BuildingFit.ess`) and resampled.  Predictive band: every draw's simulation plus
-N(0, sigma_c^2) per channel.
+Search: a global start, then least squares.  The global start is CMA-ES (Hansen 2016, the
+``cma`` package) on the sum of squares, in coordinates scaled by each parameter's typical size,
+over a box of +-:data:`GLOBAL_BOX` scaled units around its start within the bounds: for a fit from
+the isolator loop fit (equation error, force given the measured displacement) over every
+parameter (:data:`GLOBAL_EVALS` simulations); for the refit of an added effect from a fitted
+building over the effect's parameters and the superstructure's stiffness scale and damping, the
+fitted law held (:data:`REFIT_GLOBAL_EVALS`), so the refit is not confined to the basin of the
+effect's one start.  Its best point joins the local starts: the loop fit with the identified
+superstructure and with a stiffer, more damped one (or the given fits with the effect at the
+catalogue's start); each start runs a short screen of least squares
+(``scipy.optimize.least_squares``, trust-region reflective, bounded, same scaled coordinates),
+the best continues (the multi-start of :class:`rrfrei.gap.model.IsolatorModel`).
 
-A simulation whose Newton fails (the law's local solve or the building step, also after the
-kernel's subdivisions) is a bad point of the optimiser (a large constant residual) and a dropped
-draw of the posterior, never an exception; the count is reported in the fit's note.
+Posterior: Laplace, ``N(x*, (J^T W J + I)^-1)`` with the tempered weights W and a unit ridge in
+scaled coordinates, checked by importance sampling (weights = tempered likelihood over the
+Gaussian proposal; its effective sample size is reported in :attr:`BuildingFit.ess`) and
+resampled. Predictive band: every draw's simulation plus N(0, sigma_c^2) per channel.
+
+Every simulation has the robust local solve: where OpenSees' local iteration of the law fails
+even at the last subdivision of a step, the law's bracketed, safeguarded Newton solves it (a
+deviation from OpenSees, counted in :attr:`BuildingFit.robust_sims` and the fit's note).  A
+simulation that fails even so is a bad point of the optimiser (a large constant residual) and a
+dropped draw of the posterior, never an exception; the count is reported in the fit's note.
 """
 
 from __future__ import annotations
@@ -109,6 +118,16 @@ REFIT_NFEV = 12
 """Most evaluations of a refit that starts from a fitted building (an added effect)."""
 REFIT_SCREEN_NFEV = 4
 """Evaluations of each start's screen in such a refit."""
+GLOBAL_EVALS = 400
+"""Evaluations (simulations) of the CMA-ES global start of a fit from the loop fit."""
+REFIT_GLOBAL_EVALS = 100
+"""Evaluations of the CMA-ES global start of a refit (over the added effect's parameters and the
+superstructure's, the fitted building's other parameters held)."""
+GLOBAL_BOX = 2.0
+"""Half-width of the global search's box around its start, in scaled coordinates (each parameter
+over its typical size: -100 % to +300 % of a parameter that starts at its size)."""
+CMA_SIGMA = 0.25
+"""Initial step of CMA-ES on the box mapped onto the unit cube."""
 K_SCALE_BOX = (0.5, 2.0)
 """Bounds of the superstructure stiffness scale: a factor 2 either way of the identification."""
 ZETA_BOX = (0.0, 0.2)
@@ -276,18 +295,23 @@ class _Layout:
 
 def simulate(spec: LawSpec, law_p: np.ndarray, sup: Superstructure, data: BuildingData, *,
              k_scale: float = 1.0, zeta: float | None = None, c_iso: float = 0.0, soft_exp: float = 0.0,
-             a_ref: float | None = None) -> tuple[int, dict[str, dict[str, np.ndarray]]]:
+             a_ref: float | None = None, tally: dict | None = None
+             ) -> tuple[int, dict[str, dict[str, np.ndarray]]]:
     """Simulate the building through ``data``'s runs; (status, run -> channel -> (n,) arrays).
 
-    Status 0 on success; otherwise the kernel's status (the law's local solve or Newton failed at
-    every subdivision) or -3 (non-finite output).  Displacements are measured from each run's
-    start, as the records are.
+    The Newmark step is OpenSees' (Newton, then subdivision of a failing step); at the last
+    subdivision level the law's robust local solve (bracketed, safeguarded Newton) replaces a
+    failed local iteration, a deviation from OpenSees counted in ``tally`` (when given: its
+    ``"robust_steps"`` grows by the output steps where it acted, ``"robust_sims"`` by one when it
+    acted at all).  Status 0 on success; otherwise the kernel's status (Newton failed even so) or
+    -3 (non-finite output).  Displacements are measured from each run's start, as the records are.
     """
     zeta = sup.zeta if zeta is None else zeta
     out: dict[str, dict[str, np.ndarray]] = {}
     m = sup.masses
     K = kernel(spec)
-    solver = _solver(0.5, 0.25, 1e-12, 50, 6, False)
+    solver = _solver(0.5, 0.25, 1e-12, 50, 6, True)
+    dev = 0
     lay = Layer(np.ascontiguousarray(law_p, dtype=float), 1.0, 1.0, np.array(spec.initial_state, dtype=float))
     groups: list[tuple[float, list[str]]]
     if soft_exp == 0.0:
@@ -307,7 +331,9 @@ def simulate(spec: LawSpec, law_p: np.ndarray, sup: Superstructure, data: Buildi
             res = K.integrate(chain, lay, ag, data.dt, solver, hist)
         except NUMERICAL_ERRORS:
             return -98, {}
+        dev += int(np.count_nonzero(hist.robust))
         if res.status != 0:
+            _tally(tally, dev)
             return int(res.status), {}
         for o in obs:
             s = data._slices[o]
@@ -317,7 +343,14 @@ def simulate(spec: LawSpec, law_p: np.ndarray, sup: Superstructure, data: Buildi
             if not all(np.all(np.isfinite(v)) for v in ch.values()):
                 return -3, {}
             out[o] = ch
+    _tally(tally, dev)
     return 0, out
+
+
+def _tally(tally: dict | None, steps: int) -> None:
+    if tally is not None and steps:
+        tally["robust_steps"] = tally.get("robust_steps", 0) + steps
+        tally["robust_sims"] = tally.get("robust_sims", 0) + 1
 
 
 # ---------------------------------------------------------------------------------------------
@@ -336,6 +369,8 @@ class BuildingFit(FitResult):
         autocorrelation at the optimum, on the calibration runs.
     ess : effective sample size of the importance weights of the Laplace draws (of S).
     nfev : simulations the search ran; failed : simulations that failed (bad points).
+    robust_sims : simulations of the fit in which the robust local solve replaced OpenSees' failed
+        iteration (a deviation from OpenSees; the time steps are counted in :attr:`note`).
     """
 
     model: BuildingModel
@@ -348,6 +383,7 @@ class BuildingFit(FitResult):
     failed: int = 0
     seed: int = 0
     note: str = ""
+    robust_sims: int = 0
     _cache: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -392,11 +428,16 @@ class BuildingFit(FitResult):
         inv = np.asarray(inv).reshape(-1)
         outs, st = [], np.zeros(U.shape[0], dtype=int)
         kept = self._cache.get(("sims", id(data)), (None, {}))[1]
+        tally: dict = {}
         for j in range(U.shape[0]):
             o = kept.get(np.asarray(U[j], dtype=float).tobytes())
             if o is None:
-                st[j], o = self.model.simulate(U[j], data)
+                st[j], o = self.model.simulate(U[j], data, tally=tally)
             outs.append(o)
+        if tally:
+            self._add_note(f"the robust local solve replaced OpenSees' failed iteration (a deviation) at "
+                           f"{tally['robust_steps']} time steps of {tally['robust_sims']} posterior draws on "
+                           f"{data.name}")
         ok = st[inv] == 0
         if not ok.any():
             s0, o0 = self.model.simulate(self.x_opt, data)
@@ -478,6 +519,46 @@ class BuildingFit(FitResult):
         return temp[None, :] * (-0.5 * r**2 - np.log(sig)[None, :] - 0.5 * math.log(2 * math.pi))
 
 
+def _cma_start(resid, x0: np.ndarray, lb: np.ndarray, ub: np.ndarray, free: np.ndarray, evals: int,
+               seed: int) -> np.ndarray | None:
+    """Best point of a CMA-ES search (Hansen 2016, "The CMA evolution strategy: a tutorial",
+    arXiv:1604.00772; the ``cma`` package) of the sum of squares of ``resid`` over the coordinates
+    ``free`` (scaled, the others held at ``x0``), in the box ``x0 +- GLOBAL_BOX`` within the
+    bounds, mapped onto the unit cube; ``evals`` evaluations at most.  None when no evaluated
+    point beats ``x0``."""
+    import cma
+
+    lo = np.maximum(lb, x0 - GLOBAL_BOX)[free]
+    hi = np.minimum(ub, x0 + GLOBAL_BOX)[free]
+    span = np.where(hi > lo, hi - lo, 1.0)
+    u0 = np.clip((x0[free] - lo) / span, 0.0, 1.0)
+
+    def full(u):
+        x = x0.copy()
+        x[free] = lo + np.clip(np.asarray(u, float), 0.0, 1.0) * span
+        return x
+
+    def f(u):
+        r = resid(full(u))
+        return float(r @ r)
+
+    f0 = f(u0)
+    opts = {"bounds": [0.0, 1.0], "seed": 1 + int(seed) % 100_000, "maxfevals": int(evals),
+            "verbose": -9, "tolfun": 1e-6 * max(f0, 1e-12)}
+    if u0.size == 1:  # cma needs two coordinates: a dummy one
+        opts["bounds"] = [[0.0, 0.0], [1.0, 1.0]]
+        es = cma.CMAEvolutionStrategy([u0[0], 0.5], CMA_SIGMA, opts)
+        es.optimize(lambda u: f(u[:1]))
+        ub_ = np.asarray(es.result.xbest[:1]) if es.result.xbest is not None else None
+    else:
+        es = cma.CMAEvolutionStrategy(u0, CMA_SIGMA, opts)
+        es.optimize(f)
+        ub_ = es.result.xbest
+    if ub_ is None or not es.result.fbest < f0:
+        return None
+    return full(ub_)
+
+
 def _temper(rho: float) -> float:
     rho = min(max(float(rho), 0.0), 0.999)
     return (1.0 - rho) / (1.0 + rho)
@@ -512,7 +593,8 @@ class BuildingModel(GapModel):
 
     def __init__(self, law: str | LawSpec, superstructure, start_test: ShearTest, scales: Mapping[str, float],
                  *, system: Sequence[str] = (), draws: int = 30, loop_fit=None, a_ref: float = 1.0,
-                 max_nfev: int = MAX_NFEV) -> None:
+                 max_nfev: int = MAX_NFEV, global_evals: int = GLOBAL_EVALS,
+                 refit_global_evals: int = REFIT_GLOBAL_EVALS) -> None:
         self.spec = get(law)
         self.sup = Superstructure.of(superstructure)
         self.start_test = start_test
@@ -527,6 +609,8 @@ class BuildingModel(GapModel):
         self.loop_fit = loop_fit
         self.a_ref = float(a_ref)
         self.max_nfev = int(max_nfev)
+        self.global_evals = int(global_evals)
+        self.refit_global_evals = int(refit_global_evals)
         iso = IsolatorModel(self.spec, draws=10)
         free, fixed = iso.free_parameters(start_test)
         sysp = ["k_scale", "zeta"]
@@ -553,7 +637,8 @@ class BuildingModel(GapModel):
         law = "+".join([base, *self.spec.effects, *iso])
         return BuildingModel(law, self.sup, self.start_test, self.scales, system=[*self.system, *sysx],
                              draws=self.draws, loop_fit=self.loop_fit, a_ref=self.a_ref,
-                             max_nfev=self.max_nfev)
+                             max_nfev=self.max_nfev, global_evals=self.global_evals,
+                             refit_global_evals=self.refit_global_evals)
 
     @property
     def candidate_effects(self) -> tuple[str, ...]:
@@ -626,8 +711,9 @@ class BuildingModel(GapModel):
     def _base_values(self) -> dict[str, float]:
         return dict(self.loop_fit.params) if self.loop_fit is not None else {}
 
-    def simulate(self, x: np.ndarray, data: BuildingData):
-        """(status, run -> channel -> (n,)) at parameters ``x`` (:attr:`layout` names, units)."""
+    def simulate(self, x: np.ndarray, data: BuildingData, tally: dict | None = None):
+        """(status, run -> channel -> (n,)) at parameters ``x`` (:attr:`layout` names, units);
+        ``tally``: counts of the robust local solve's deviations (:func:`simulate`)."""
         lay = self.layout
         vals = dict(zip(lay.names, np.asarray(x, float)))
         p = lay.law_vector(vals)
@@ -637,11 +723,13 @@ class BuildingModel(GapModel):
             except ValueError:
                 return -97, {}
         return simulate(self.spec, p, self.sup, data, k_scale=vals["k_scale"], zeta=vals["zeta"],
-                        c_iso=vals.get("c_iso", 0.0), soft_exp=vals.get("soft_exp", 0.0), a_ref=self.a_ref)
+                        c_iso=vals.get("c_iso", 0.0), soft_exp=vals.get("soft_exp", 0.0), a_ref=self.a_ref,
+                        tally=tally)
 
     def _starts(self, start) -> list[dict[str, float]]:
         """Start points (dicts of parameter values): from fits given (their parameters, with each
-        added effect at the catalogue's starts and its neutral value), else from the loop fit."""
+        added effect at the catalogue's start and, when no global search follows, also at its
+        neutral value: the global search's box holds both), else from the loop fit."""
         sc = test_scales(self.start_test)
         bases: list[dict[str, float]] = []
         for s in ([start] if isinstance(start, FitResult) else list(start or [])):
@@ -650,6 +738,8 @@ class BuildingModel(GapModel):
             b = dict(self._base_values())
             b.update({"k_scale": 1.0, "zeta": self.sup.zeta})
             bases = [b, dict(b, k_scale=1.2, zeta=min(3 * self.sup.zeta, 0.25))]
+        alternatives = start is None or self.refit_global_evals <= 0
+        c_iso_new = not all("c_iso" in b for b in bases)
         out = []
         for b in bases:
             b = dict(b)
@@ -663,10 +753,11 @@ class BuildingModel(GapModel):
                 es = info.scales(sc)
                 if any(k not in b for k in es):
                     neutral = dict(zip([q.name for q in info.spec.params], info.spec.neutral))
-                    opts = [dict(o, **e) for o in opts for e in [*info.starts(sc)[:1], neutral]]
-            if "c_iso" in self.layout.system and "c_iso" not in (start.params if isinstance(start, FitResult)
-                                                                   else {}):
-                opts = [dict(o, c_iso=v) for o in opts for v in (0.0, 0.02 * sc.force / sc.vel)]
+                    alts = [*info.starts(sc)[:1], neutral] if alternatives else info.starts(sc)[:1]
+                    opts = [dict(o, **e) for o in opts for e in alts]
+            if "c_iso" in self.layout.system and c_iso_new:
+                c0 = 0.02 * sc.force / sc.vel
+                opts = [dict(o, c_iso=v) for o in opts for v in ((0.0, c0) if alternatives else (c0,))]
             out.extend(dict(b, **o) for o in opts)
         return out
 
@@ -697,7 +788,7 @@ class BuildingModel(GapModel):
             counter["n"] += 1
             if budget is not None:
                 budget.check()
-            st, out = self.simulate(x * s_vec, data)
+            st, out = self.simulate(x * s_vec, data, tally=counter)
             if st != 0:
                 counter["failed"] += 1
                 return None
@@ -722,6 +813,18 @@ class BuildingModel(GapModel):
         def search(x0, nfev):
             return least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0, max_nfev=nfev,
                                  diff_step=1e-3)
+
+        # global start: CMA-ES over every parameter (a fit from the loop fit) or over the parameters
+        # the given fits do not hold (an added effect's, with the superstructure's), from the first
+        # start; its best point joins the starts of the local search
+        fits_given = [] if start is None else [start] if isinstance(start, FitResult) else list(start)
+        given = {n for n in lay.names if fits_given and all(n in f_.params for f_ in fits_given)}
+        free_g = np.array([n not in given or n in ("k_scale", "zeta") for n in lay.names])
+        evals = self.global_evals if start is None else self.refit_global_evals
+        if evals > 0 and free_g.any():
+            xg = _cma_start(resid, xs[0], lb, ub, free_g, evals, seed)
+            if xg is not None:
+                xs.append(xg)
 
         screened = []
         for x0 in xs:
@@ -815,9 +918,15 @@ class BuildingModel(GapModel):
             msg = (f"{counter['failed']} of {counter['n']} simulations of {self.name} failed during the fit "
                    "(counted as bad points)")
             note = f"{note}; {msg}" if note else msg
+        if counter.get("robust_sims"):
+            msg = (f"the robust local solve replaced OpenSees' failed iteration (a deviation) at "
+                   f"{counter['robust_steps']} time steps of {counter['robust_sims']} of {counter['n']} "
+                   f"simulations of {self.name} during the fit")
+            note = f"{note}; {msg}" if note else msg
         kept[np.asarray(best.x * s_vec, dtype=float).tobytes()] = out
         fit = BuildingFit(model=self, x_opt=x_opt, X=X, sigma_c=sigma_c, rho_c=rho_c, ess=ess,
-                          nfev=counter["n"], failed=counter["failed"], seed=seed, note=note)
+                          nfev=counter["n"], failed=counter["failed"], seed=seed, note=note,
+                          robust_sims=int(counter.get("robust_sims", 0)))
         fit._cache[("sims", id(data))] = (data, kept)  # the draws' simulations on the fitted data
         return fit
 
@@ -830,7 +939,8 @@ class BuildingModel(GapModel):
         settings = {"law": self.spec.name, "system": list(self.system), "draws": self.draws,
                     "observed": list(data.observed), "pad": data.pad_s, "format": 1,
                     "sup": [self.sup.masses.tolist(), self.sup.stiffness.tolist(), self.sup.zeta],
-                    "scales": self.scales, "max_nfev": self.max_nfev,
+                    "scales": self.scales, "max_nfev": self.max_nfev, "format_fit": 2,
+                    "global": [self.global_evals, self.refit_global_evals],
                     "start": None if self.loop_fit is None else sorted(self.loop_fit.params.items())}
         h.update(json.dumps(settings, sort_keys=True, default=str).encode())
         return h.hexdigest()
@@ -840,7 +950,7 @@ class BuildingModel(GapModel):
                 "sigma": np.array([fit.sigma_c[c] for c in REPORT_CHANNELS]),
                 "rho": np.array([fit.rho_c[c] for c in FIT_CHANNELS]), "ess": np.array(fit.ess),
                 "nfev": np.array(fit.nfev), "failed": np.array(fit.failed), "seed": np.array(fit.seed),
-                "note": np.array(fit.note)}
+                "note": np.array(fit.note), "robust_sims": np.array(fit.robust_sims)}
 
     def restore(self, state: Mapping[str, np.ndarray]) -> BuildingFit:
         names = tuple(str(x) for x in state["names"])
@@ -851,7 +961,8 @@ class BuildingModel(GapModel):
                            sigma_c=dict(zip(REPORT_CHANNELS, map(float, state["sigma"]))),
                            rho_c=dict(zip(FIT_CHANNELS, map(float, state["rho"]))), ess=float(state["ess"]),
                            nfev=int(state["nfev"]), failed=int(state["failed"]), seed=int(state["seed"]),
-                           note=str(state["note"]))
+                           note=str(state["note"]),
+                           robust_sims=int(state["robust_sims"]) if "robust_sims" in state else 0)
 
 
 def calibration_test(runs: Sequence[ShakeTableRun], rate_hz: float) -> ShearTest:

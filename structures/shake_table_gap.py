@@ -506,7 +506,8 @@ class ShakeTableGap:
                 "residual_sd": {k: _num(v) for k, v in ff.sigma_c.items()},
                 "residual_rho1": {k: _num(v) for k, v in ff.rho_c.items()},
                 "importance_ess": _num(ff.ess), "draws": int(ff.X.shape[0]),
-                "simulations": int(ff.nfev), "failed_simulations": int(ff.failed)},
+                "simulations": int(ff.nfev), "failed_simulations": int(ff.failed),
+                "robust_simulations": int(getattr(ff, "robust_sims", 0))},
             "building_check": [{k: _num(v) if isinstance(v, float) else v for k, v in row.items()}
                                for row in self.building_check.to_dict("records")],
             "building_best": (None if (bb := self.building_best()) is None

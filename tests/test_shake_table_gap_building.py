@@ -138,14 +138,15 @@ def test_a_failing_simulation_is_a_bad_point_never_an_exception(truth, monkeypat
     there): the fit still ends at the truth, started 25 % off, and says how many failed."""
     b, runs = truth
     m = _model(runs, Superstructure.of(b), {**PL, "qd": 0.75 * PL["qd"]})
+    m.global_evals = 0  # the local search alone: its count of failures is the injected one
     real = BuildingModel.simulate
     calls = {"n": 0}
 
-    def flaky(self, x, data):
+    def flaky(self, x, data, tally=None):
         calls["n"] += 1
         if calls["n"] <= 30 and calls["n"] % 3 == 0:
             return -4, {}
-        return real(self, x, data)
+        return real(self, x, data, tally)
 
     monkeypatch.setattr(BuildingModel, "simulate", flaky)
     fit = m.fit(BuildingData(tuple(runs), observed=("run1",)), seed=0)
