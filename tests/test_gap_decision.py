@@ -284,7 +284,7 @@ def test_the_baseline_optimum_is_at_least_as_good_as_calibrates_optimum_on_the_s
     evaluations; the diagnosis's baseline is polished from it (and another start), never worse."""
     from rrfrei.calibration import setup_problem
     from rrfrei.calibration.sampler import find_map
-    from rrfrei.gap.model import IsolatorModel, _simulate
+    from rrfrei.gap.isolator import IsolatorModel, _simulate
     from rrfrei.gap.residuals import gap
     from rrfrei.io import load_test
     from rrfrei.laws import get

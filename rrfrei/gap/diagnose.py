@@ -78,7 +78,8 @@ from rrfrei.gap import decision as dec
 from rrfrei.gap.blas import one_blas_thread
 from rrfrei.gap.catalogue import ScreenContext, catalogue, screen_all
 from rrfrei.gap.checkpoint import Checkpoint, _Checkpoint, _fit_or_restore
-from rrfrei.gap.model import FitResult, GapModel, IsolatorModel, velocity
+from rrfrei.gap.isolator import IsolatorModel
+from rrfrei.gap.model import FitResult, GapModel, velocity
 from rrfrei.gap.residuals import cycle_levels, segment_table
 from rrfrei.gap.scoring import (
     EffectScore,
