@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rrfrei._inputs import read_toml
+from rrfrei.io import read_toml
 from structures.shake_table.checks import (
     _MIN_FILTER_SAMPLES,
     ConsistencyReport,
