@@ -424,77 +424,120 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
         ranking = tuple(sorted(scores, key=lambda s: -_gain(sc, s) if math.isfinite(_gain(sc, s))
                                else math.inf))
         sig = [s for s in ranking if s.significant]
-        diagnosis = "none"
-        tied: list[str] = []
-        if sig:
-            diagnosis = sig[0].effect
-            if sc.holdout:
-                diagnosis, why = _parsimonious(sc, fits, sig)
-                if why:
-                    notes.append(why)
-            if not sc.holdout and _monotone_amplitude(data):
-                win = fits[sig[0].law]
-                for other in sig[1:]:
-                    if other.effect in CONFOUNDED or diagnosis in CONFOUNDED:
-                        if not _beats(sc, win, fits[other.law]):
-                            tied.append(other.effect)
-                if tied:
-                    notes.append(Note(
-                        f"the calibration protocol's amplitude only grows, so {diagnosis} cannot be told "
-                        f"apart from {', '.join(tied)} on it alone: give held-out tests (--holdout)",
-                        "critical"))
-                    tied.insert(0, diagnosis)
-                    diagnosis = "none"
-        combination: list[str] = [] if diagnosis == "none" else [diagnosis]
+        diagnosis, tied = _name(sc, fits, sig, data, notes)
+        combination: list[str] = []
         steps: list[EffectScore] = []
-        final = bm
-        current = base
-        stopped = False  # the budget cut the combination search short
-        if combination:
+        final, current, stopped = bm, base, False
+        if diagnosis != "none":
             first = next(s for s in ranking if s.effect == diagnosis)
-            steps.append(first)
-            final = (first.calibration, first.holdout)
-            current = fits[first.law]
-            pool = [s.effect for s in sig if s.effect != diagnosis]
-            while combine and pool and len(combination) < max_combination and not stopped:
-                cand = []
-                bar.total = (getattr(bar, "total", 0) or 0) + len(pool)
-                for e in pool:
-                    if budget.expired():
-                        stopped = True
-                        break
-                    bar.set_postfix_str(f"combine +{e}")
-                    label = "+".join(combination + [e])
-                    try:
-                        picked = {k: v for k, v in chosen.items() if k in combination + [e]}
-                        step_model = (model.augment(combination + [e], variants=picked) if picked
-                                      else model.augment(combination + [e]))
-                        tag = "".join(f"|{k}:{v}" for k, v in sorted(picked.items()))
-                        fit = _fit_or_restore(ck, f"combination-{label}{tag}", step_model,
-                                              data, budget, seed=seed, start=current)
-                        cand.append((replace(_score(sc, e, fit, current, screens.get(e, float("nan")),
-                                                    final), variant=chosen.get(e, "")), fit))
-                        fits[fit.name] = fit
-                    except BudgetExceeded:
-                        stopped = True
-                        break
-                    except NUMERICAL_ERRORS as exc:
-                        notes.append(f"combination step +{e} skipped: "
-                                     f"{_failure(f'refit of {model.name}+{label}', exc)}")
-                    bar.update()
-                if stopped:
-                    notes.append(f"combination search stopped by the time budget after "
-                                 f"{'+'.join(combination)}: further effects were not tried")
-                    break
-                cand = [c for c in cand if c[0].significant]
-                if not cand:
-                    break
-                best, fit = max(cand, key=lambda c: _gain(sc, c[0]))
-                combination.append(best.effect)
-                steps.append(best)
-                final = (best.calibration, best.holdout)
-                current = fit
-                pool.remove(best.effect)
+            combination, steps, final, current, stopped = _combine(
+                model, sc, ck, data, budget, seed, bar, notes, first=first, sig=sig, chosen=chosen, fits=fits,
+                screens=screens, combine=combine, max_combination=max_combination)
+    diagnosis, missing, budget_message = _closing_notes(diagnosis, effects, skipped, untried, stopped,
+                                                        ranking, budget, fits, ck, notes)
+    try:
+        verdict, evidence = _verdict(sc, diagnosis, combination, base, current, ranking, steps, where,
+                                     tied, missing)
+    except NUMERICAL_ERRORS as exc:  # the verdict's numbers come from fits already scored
+        verdict, evidence = diagnosis, {"error": _failure("verdict", exc)}
+    return GapReport(law=model.name, diagnosis=diagnosis, combination=tuple(combination), where=where,
+                     screens=screens, ranking=ranking, steps=tuple(steps), baseline=bm, final=final,
+                     notes=tuple(ordered(notes)), fits=fits, calibration_data=data,
+                     holdout_data=tuple(holdout),
+                     skipped=skipped, not_evaluated=untried, budget_message=budget_message,
+                     elapsed=budget.elapsed, reused=tuple(ck.reused), verdict=verdict, evidence=evidence)
+
+
+def _name(sc: _Scorer, fits: dict, sig: list[EffectScore], data, notes: list) -> tuple[str, list[str]]:
+    """The effect to name among the significant ones ``sig`` (ranking order), and the effects tied
+    with it: the parsimony rule with held-out data (step 3 of the module docstring) and the
+    confounding guard without (step 4)."""
+    diagnosis = "none"
+    tied: list[str] = []
+    if sig:
+        diagnosis = sig[0].effect
+        if sc.holdout:
+            diagnosis, why = _parsimonious(sc, fits, sig)
+            if why:
+                notes.append(why)
+        if not sc.holdout and _monotone_amplitude(data):
+            win = fits[sig[0].law]
+            for other in sig[1:]:
+                if other.effect in CONFOUNDED or diagnosis in CONFOUNDED:
+                    if not _beats(sc, win, fits[other.law]):
+                        tied.append(other.effect)
+            if tied:
+                notes.append(Note(
+                    f"the calibration protocol's amplitude only grows, so {diagnosis} cannot be told "
+                    f"apart from {', '.join(tied)} on it alone: give held-out tests (--holdout)",
+                    "critical"))
+                tied.insert(0, diagnosis)
+                diagnosis = "none"
+    return diagnosis, tied
+
+
+def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBudget, seed: int, bar,
+             notes: list, *, first: EffectScore, sig: list[EffectScore], chosen: dict, fits: dict,
+             screens: dict, combine: bool, max_combination: int):
+    """Greedy combination from the named effect ``first`` (step 5 of the module docstring): add the
+    best further significant effect, refitted from the current combination, while it stays
+    significant against it.  Returns (combination, steps, final metrics, current fit, stopped by
+    the time budget)."""
+    diagnosis = first.effect
+    combination: list[str] = [diagnosis]
+    steps: list[EffectScore] = [first]
+    final = (first.calibration, first.holdout)
+    current = fits[first.law]
+    stopped = False  # the budget cut the combination search short
+    pool = [s.effect for s in sig if s.effect != diagnosis]
+    while combine and pool and len(combination) < max_combination and not stopped:
+        cand = []
+        bar.total = (getattr(bar, "total", 0) or 0) + len(pool)
+        for e in pool:
+            if budget.expired():
+                stopped = True
+                break
+            bar.set_postfix_str(f"combine +{e}")
+            label = "+".join(combination + [e])
+            try:
+                picked = {k: v for k, v in chosen.items() if k in combination + [e]}
+                step_model = (model.augment(combination + [e], variants=picked) if picked
+                              else model.augment(combination + [e]))
+                tag = "".join(f"|{k}:{v}" for k, v in sorted(picked.items()))
+                fit = _fit_or_restore(ck, f"combination-{label}{tag}", step_model,
+                                      data, budget, seed=seed, start=current)
+                cand.append((replace(_score(sc, e, fit, current, screens.get(e, float("nan")),
+                                            final), variant=chosen.get(e, "")), fit))
+                fits[fit.name] = fit
+            except BudgetExceeded:
+                stopped = True
+                break
+            except NUMERICAL_ERRORS as exc:
+                notes.append(f"combination step +{e} skipped: "
+                             f"{_failure(f'refit of {model.name}+{label}', exc)}")
+            bar.update()
+        if stopped:
+            notes.append(f"combination search stopped by the time budget after "
+                         f"{'+'.join(combination)}: further effects were not tried")
+            break
+        cand = [c for c in cand if c[0].significant]
+        if not cand:
+            break
+        best, fit = max(cand, key=lambda c: _gain(sc, c[0]))
+        combination.append(best.effect)
+        steps.append(best)
+        final = (best.calibration, best.holdout)
+        current = fit
+        pool.remove(best.effect)
+    return combination, steps, final, current, stopped
+
+
+def _closing_notes(diagnosis: str, effects: list[str], skipped: dict, untried: dict, stopped: bool,
+                   ranking, budget: TimeBudget, fits: dict, ck: _Checkpoint, notes: list
+                   ) -> tuple[str, dict[str, str], str]:
+    """The notes on what was not evaluated, the time budget, the fits' own notes and the
+    checkpoint; a diagnosis of none becomes "incomplete" when effects are missing.  Returns
+    (diagnosis, missing effects, the budget message)."""
     missing = {**skipped, **untried}
     if missing:
         listed = "; ".join(f"{e}: {why}" for e, why in missing.items())
@@ -525,18 +568,7 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                      f"({', '.join(ck.reused)})")
     if ck.error:
         notes.append(Note(ck.error, "warning"))
-    try:
-        verdict, evidence = _verdict(sc, diagnosis, combination, base, current, ranking, steps, where,
-                                     tied, missing)
-    except NUMERICAL_ERRORS as exc:  # the verdict's numbers come from fits already scored
-        verdict, evidence = diagnosis, {"error": _failure("verdict", exc)}
-    return GapReport(law=model.name, diagnosis=diagnosis, combination=tuple(combination), where=where,
-                     screens=screens, ranking=ranking, steps=tuple(steps), baseline=bm, final=final,
-                     notes=tuple(ordered(notes)), fits=fits, calibration_data=data,
-                     holdout_data=tuple(holdout),
-                     skipped=skipped, not_evaluated=untried, budget_message=budget_message,
-                     elapsed=budget.elapsed, reused=tuple(ck.reused), verdict=verdict, evidence=evidence)
-
+    return diagnosis, missing, budget_message
 
 
 def _as_test(t, what: str) -> ShearTest:
