@@ -3,7 +3,7 @@
 Fit: the optimum of the law parameters under iid Gaussian residuals (noise profiled out, flat
 priors inside the physical bounds) by bounded least squares (``scipy.optimize.least_squares``,
 trust-region reflective) from several starts: the baseline starts from the optimum of
-:func:`rrfrei.calibration.sampler.find_map` with :func:`rrfrei.calibrate`'s own settings (so its
+:func:`rrfrei.calibration.optimum.find_map` with :func:`rrfrei.calibrate`'s own settings (so its
 least-squares optimum is never worse than calibrate's) and from a shorter search with another
 seed (``GLOBAL_EVALS`` evaluations per parameter), keeping the best; an augmented
 law starts from the baseline optimum with each effect at the catalogue's starting values.
