@@ -65,12 +65,11 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 
-from rrfrei._json import number as _num
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
@@ -81,6 +80,7 @@ from rrfrei.gap.checkpoint import Checkpoint, _Checkpoint, _fit_or_restore
 from rrfrei.gap.isolator import IsolatorModel
 from rrfrei.gap.model import FitResult, GapModel, velocity
 from rrfrei.gap.residuals import cycle_levels, segment_table
+from rrfrei.gap.results import GapReport
 from rrfrei.gap.scoring import (
     EffectScore,
     Metrics,
@@ -93,7 +93,7 @@ from rrfrei.gap.scoring import (
 )
 from rrfrei.gap.verdict import VERDICTS, _verdict
 from rrfrei.io import ShearTest, read_test
-from rrfrei.notes import SEVERITIES, Note, as_dicts, ordered
+from rrfrei.notes import SEVERITIES, Note, ordered
 
 __all__ = ["EffectScore", "Metrics", "GapReport", "diagnose", "diagnose_gap", "CONFOUNDED", "Checkpoint",
            "loco", "one_blas_thread", "VERDICTS"]
@@ -103,83 +103,6 @@ CONFOUNDED = ("degradation", "mullins", "rollover", "slip")
 MIN_GAIN = dec.MIN_GAIN
 VARIANT_TRACE = 0.05
 """Least systematic-gap shrink of an effect's primary fit for its variants to be tried."""
-
-
-@dataclass(frozen=True)
-class GapReport:
-    """Result of :func:`diagnose`: where the baseline misses, which effect, how far it shrinks.
-
-    ``diagnosis`` is the named effect, or ``"none"`` when no effect is named (``"incomplete"``
-    when effects were left unevaluated); ``verdict`` reads the gap: the named effect, ``"none"``
-    (what is left is noise), ``"unexplained"`` (a systematic gap that no catalogued effect
-    closes) or ``"incomplete"``; ``evidence`` holds the numbers behind the verdict (see
-    :func:`diagnose`).
-    """
-
-    law: str
-    diagnosis: str
-    combination: tuple[str, ...]
-    where: pd.DataFrame
-    screens: dict[str, float]
-    ranking: tuple[EffectScore, ...]
-    steps: tuple[EffectScore, ...]
-    baseline: tuple[Metrics, Metrics | None]
-    final: tuple[Metrics, Metrics | None]
-    notes: tuple[str, ...]
-    fits: dict = field(default_factory=dict, repr=False, compare=False)
-    calibration_data: object = field(default=None, repr=False, compare=False)
-    holdout_data: tuple = field(default=(), repr=False, compare=False)
-    skipped: dict[str, str] = field(default_factory=dict)
-    """Effects whose refit or scoring failed numerically: effect -> what failed where."""
-    not_evaluated: dict[str, str] = field(default_factory=dict)
-    """Effects not tried: effect -> why (``"time budget"``)."""
-    budget_message: str = ""
-    """The one line saying the time budget was reached ("" when it was not)."""
-    elapsed: float = float("nan")
-    """Wall time of the diagnosis [s]."""
-    reused: tuple[str, ...] = ()
-    """Steps whose fits were read from the checkpoint folder instead of refitted."""
-    verdict: str = ""
-    """An effect name, ``"none"``, ``"unexplained"`` or ``"incomplete"``."""
-    evidence: dict = field(default_factory=dict)
-    """Why the verdict (JSON-ready; keys in :func:`diagnose`)."""
-
-    @property
-    def complete(self) -> bool:
-        """True when every requested effect that the data can judge was refitted and scored."""
-        return not self.skipped and not self.not_evaluated
-
-    def as_dict(self) -> dict:
-        """The JSON summary of the CLI (gaps as NRMSE; holdout null without held-out data)."""
-        b, f = self.baseline, self.final
-        return {
-            "law": self.law,
-            "verdict": self.verdict,
-            "diagnosis": self.diagnosis,
-            "combination": list(self.combination),
-            "evidence": self.evidence,
-            "where": [{"axis": r.axis, "segment": r.segment, "error_share": _num(r.error_share),
-                       "coverage": _num(r.coverage)} for r in self.where.head(10).itertuples()],
-            "ranking": [{"effect": e.effect, "variant": e.variant, "delta_elpd": _num(e.delta_elpd),
-                         "se": _num(e.se),
-                         "shrink_calibration": _num(e.shrink_calibration),
-                         "shrink_holdout": _num(e.shrink_holdout), "passes_rule": e.significant,
-                         "named": e.effect in self.combination, **e.evidence()}
-                        for e in self.ranking],
-            "gap_before": {"calibration": _num(b[0].gap),
-                           "holdout": None if b[1] is None else _num(b[1].gap)},
-            "gap_after": {"calibration": _num(f[0].gap),
-                          "holdout": None if f[1] is None else _num(f[1].gap)},
-            "complete": self.complete,
-            "skipped": dict(self.skipped),
-            "not_evaluated": dict(self.not_evaluated),
-            "time_budget": {"reached": bool(self.budget_message), "message": self.budget_message or None,
-                            "elapsed_s": _num(self.elapsed)},
-            "reused_from_checkpoint": list(self.reused),
-            "notes": [str(n) for n in ordered(self.notes)],  # critical first
-            "notes_severity": as_dicts(self.notes),
-        }
-
 
 
 def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: str, fit: FitResult,

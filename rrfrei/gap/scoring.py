@@ -13,91 +13,16 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import logsumexp
 
-from rrfrei._json import number as _num
 from rrfrei.gap import decision as dec
 from rrfrei.gap.model import FitResult, GapModel, white_noise
 from rrfrei.gap.residuals import energy_error, gap, systematic_gap
+from rrfrei.gap.results import EffectScore, Metrics
 
 __all__ = ["EffectScore", "Metrics", "loco"]
-
-
-@dataclass(frozen=True)
-class Metrics:
-    """Gap, its systematic part, energy-per-cycle error and band coverage (pooled)."""
-
-    gap: float
-    systematic: float
-    energy_error: float
-    coverage: float
-
-    def as_dict(self) -> dict:
-        return {k: _num(v) for k, v in self.__dict__.items()}
-
-
-@dataclass(frozen=True)
-class EffectScore:
-    """One effect (or combination step) against its reference model."""
-
-    effect: str
-    law: str
-    screen: float
-    delta_elpd: float
-    se: float
-    delta_holdout: float
-    se_holdout: float
-    calibration: Metrics
-    holdout: Metrics | None
-    shrink_calibration: float
-    shrink_holdout: float
-    significant: bool
-    """The effect passes the decision rule (:mod:`rrfrei.gap.decision`) against its reference;
-    whether it is *named* is the report's verdict (a passing effect can be tied or not combined)."""
-    params: dict
-    note: str = ""
-    blocks_calibration: dec.RankEvidence | None = None
-    """Sign and signed-rank tests of the leave-one-block-out elpd gains on the calibration test."""
-    blocks_holdout: dec.RankEvidence | None = None
-    """The same over the held-out blocks' squared-error reductions (None without held-out data)."""
-    shrink_ci: dec.ShrinkEvidence | None = None
-    """Systematic-gap shrink with its block-bootstrap interval: pooled over the held-out tests, or
-    on the calibration test when there are none."""
-    why: str = ""
-    """The decision rule's reading in one line (why it passes or what fails)."""
-    variant: str = ""
-    """The variant of the effect that was fitted ("": the primary fit,
-    :class:`rrfrei.laws.effects.Variant`)."""
-
-    @property
-    def label(self) -> str:
-        """The effect's name, with its variant in parentheses when one was fitted."""
-        return f"{self.effect} ({self.variant})" if self.variant else self.effect
-
-    def evidence(self) -> dict:
-        """The decision rule's numbers (JSON-ready)."""
-        def d(x):
-            return None if x is None else x.as_dict()
-
-        return {"calibration_blocks": d(self.blocks_calibration), "holdout_blocks": d(self.blocks_holdout),
-                "shrink": d(self.shrink_ci),
-                "shrink_on": "holdout" if self.blocks_holdout is not None else "calibration",
-                "passes_rule": self.significant, "why": self.why}
-
-    def as_dict(self) -> dict:
-        return {
-            "effect": self.effect, "variant": self.variant, "law": self.law, "screen": _num(self.screen),
-            "delta_elpd": _num(self.delta_elpd), "se": _num(self.se),
-            "delta_holdout": _num(self.delta_holdout), "se_holdout": _num(self.se_holdout),
-            "shrink_calibration": _num(self.shrink_calibration),
-            "shrink_holdout": _num(self.shrink_holdout), "significant": self.significant,
-            "calibration": self.calibration.as_dict(),
-            "holdout": None if self.holdout is None else self.holdout.as_dict(),
-            "params": self.params, "note": self.note, "evidence": self.evidence(),
-        }
 
 
 # ---------------------------------------------------------------------------------------------

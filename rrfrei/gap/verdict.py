@@ -11,7 +11,8 @@ import pandas as pd
 from rrfrei._json import number as _num
 from rrfrei.gap import decision as dec
 from rrfrei.gap.model import FitResult
-from rrfrei.gap.scoring import EffectScore, _Scorer
+from rrfrei.gap.results import EffectScore
+from rrfrei.gap.scoring import _Scorer
 
 __all__ = ["VERDICTS"]
 
