@@ -32,7 +32,7 @@ import pandas as pd
 
 from rrfrei._inputs import read_toml
 
-__all__ = ["ShearTest", "concat_tests", "read_test", "load_test", "bundled_tests", "MIN_POINTS"]
+__all__ = ["ShearTest", "concat_tests", "read_test", "load_test", "bundled_tests", "MIN_POINTS", "read_toml"]
 
 MIN_POINTS = 10
 """Fewest samples a test may have."""

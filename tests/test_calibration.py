@@ -187,7 +187,7 @@ def test_the_convergence_checks_statistics_are_emcees_tau_and_arviz_ess_and_rhat
     import arviz as az
     import emcee
 
-    from rrfrei.calibration.sampler import _diagnose, _tau
+    from rrfrei.calibration.convergence import _diagnose, _tau
 
     rng = np.random.default_rng(1)
     n, m, phi = 600, 16, np.array([0.5, 0.8, 0.95])  # AR(1) chains: tau = (1 + phi) / (1 - phi)
@@ -345,7 +345,8 @@ def test_the_initial_ensemble_covariance_is_the_closed_form_posterior_of_a_linea
     """For F = k u with Gaussian noise, Var(k | data) = sigma^2 / sum(w_t^2), w the whitened
     displacement (w_0 = sqrt(1 - rho^2) u_0, w_t = u_t - rho u_{t-1}); in the sampler's unit-cube
     coordinate z (k = k(z)) the precision is that times (dk/dz)^2, plus the stated ridge."""
-    from rrfrei.calibration.sampler import LAPLACE_RIDGE, _Cube, laplace_cov
+    from rrfrei.calibration.laplace import LAPLACE_RIDGE, laplace_cov
+    from rrfrei.calibration.optimum import _Cube
 
     pb, u = _linear_problem(noise)
     k_hat, sigma = 2500.0, 0.1
@@ -364,7 +365,7 @@ def test_the_initial_ensemble_covariance_is_the_closed_form_posterior_of_a_linea
 def test_the_initial_walkers_spread_like_the_posterior_not_like_a_point():
     """Drawn walkers of the linear spring: sd of k within 5 % of the closed-form posterior sd
     (4000 walkers: the sd estimate itself scatters by ~1 %), sigma within its 1/sqrt(2n) spread."""
-    from rrfrei.calibration.sampler import _ball
+    from rrfrei.calibration.laplace import _ball
 
     pb, u = _linear_problem("iid")
     theta0 = np.array([2500.0, 0.1])

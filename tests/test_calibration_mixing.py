@@ -77,8 +77,7 @@ def test_the_posterior_file_of_a_2401_sample_test_is_at_most_10_mb(converged, tm
     predictive draws), the file holds it in float32, and LOO read back from the file equals
     the in-memory one to float32 rounding."""
     from rrfrei.calibration import Calibration
-    from rrfrei.calibration.compare import _az
-    from rrfrei.calibration.results import MAX_LOGLIK_VALUES
+    from rrfrei.calibration.results import MAX_LOGLIK_VALUES, load_arviz
 
     cal = converged
     path = cal.to_netcdf(tmp_path / "posterior.nc")
@@ -92,8 +91,8 @@ def test_the_posterior_file_of_a_2401_sample_test_is_at_most_10_mb(converged, tm
     np.testing.assert_array_equal(back.theta(), cal.theta())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        loo_file = _az().loo(back.idata, var_name="force").elpd_loo
-        loo_mem = _az().loo(cal.idata, var_name="force").elpd_loo
+        loo_file = load_arviz().loo(back.idata, var_name="force").elpd_loo
+        loo_mem = load_arviz().loo(cal.idata, var_name="force").elpd_loo
     assert loo_file == pytest.approx(loo_mem, rel=1e-5)
 
 

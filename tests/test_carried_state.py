@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from rrfrei.gap.model import IsolatorFit, IsolatorModel, _simulate
+from rrfrei.gap.isolator import IsolatorFit, IsolatorModel, _simulate
 from rrfrei.io import ShearTest, concat_tests
 from rrfrei.laws import get
 from rrfrei.laws.specialise import history

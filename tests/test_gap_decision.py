@@ -284,7 +284,7 @@ def test_the_baseline_optimum_is_at_least_as_good_as_calibrates_optimum_on_the_s
     evaluations; the diagnosis's baseline is polished from it (and another start), never worse."""
     from rrfrei.calibration import setup_problem
     from rrfrei.calibration.sampler import find_map
-    from rrfrei.gap.model import IsolatorModel, _simulate
+    from rrfrei.gap.isolator import IsolatorModel, _simulate
     from rrfrei.gap.residuals import gap
     from rrfrei.io import load_test
     from rrfrei.laws import get
@@ -305,7 +305,7 @@ def test_the_diagnosis_runs_blas_on_one_thread_and_restores_it_after():
     import numpy  # noqa: F401  (loads its BLAS)
     from threadpoolctl import threadpool_info
 
-    from rrfrei.gap.diagnose import one_blas_thread
+    from rrfrei.gap.blas import one_blas_thread
 
     def blas():
         return [d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"]

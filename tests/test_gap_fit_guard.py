@@ -4,7 +4,7 @@ only creeps is stopped, a start cut after its screen continues only while it can
 import numpy as np
 from scipy.optimize import least_squares
 
-from rrfrei.gap.model import STALL_ITERATIONS, STALL_REL, _Guard, _worth_continuing
+from rrfrei.gap.fitting import STALL_ITERATIONS, STALL_REL, _Guard, _worth_continuing
 
 
 class _Step:

@@ -5,7 +5,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from rrfrei.gap.diagnose import _parsimonious
+from rrfrei.gap.scoring import _parsimonious
 
 WINS = np.linspace(0.5, 2.0, 40)  # every held-out block gains: a significant win
 TIES = np.resize([1.0, -1.1, 0.9, -0.8], 40)  # as many losses as gains: no significant win

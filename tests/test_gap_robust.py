@@ -17,7 +17,9 @@ from rrfrei.app.cli import main
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.errors import NumericalFailure
 from rrfrei.gap.diagnose import diagnose
-from rrfrei.gap.model import FitResult, GapModel, IsolatorFit, IsolatorModel, Prediction, _laplace_cov
+from rrfrei.gap.fitting import _laplace_cov
+from rrfrei.gap.isolator import IsolatorFit, IsolatorModel
+from rrfrei.gap.model import FitResult, GapModel, Prediction
 from rrfrei.gap.report import write_report
 from rrfrei.io import ShearTest
 from rrfrei.laws import get
@@ -244,7 +246,7 @@ def _p1(n: int = 300) -> tuple[ShearTest, IsolatorFit]:
 
 
 def test_a_simulation_that_raises_inside_the_least_squares_search_is_a_bad_point(monkeypatch):
-    import rrfrei.gap.model as gm
+    import rrfrei.gap.isolator as gm
 
     test, start = _p1()
     real, calls = gm._simulate, [0]
@@ -369,7 +371,7 @@ def _steep_bouc_wen_fit(n_draws=6):
 
 def test_a_prediction_whose_local_solve_fails_is_retried_with_sub_increments_and_says_so():
     from rrfrei import simulate_force
-    from rrfrei.gap.model import _simulate
+    from rrfrei.gap.isolator import _simulate
 
     spec, p, test, fit = _steep_bouc_wen_fit()
     assert _simulate(spec, p, test)[0] == -2  # the sample steps fail
@@ -383,7 +385,7 @@ def test_a_prediction_that_fails_for_every_draw_and_the_optimum_is_a_numerical_f
         monkeypatch):
     """A failed driver leaves its force array uninitialised from the failing sample on; the
     prediction must never be read from it."""
-    import rrfrei.gap.model as model
+    import rrfrei.gap.isolator as model
 
     _, _, test, fit = _steep_bouc_wen_fit()
 

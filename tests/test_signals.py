@@ -135,7 +135,7 @@ def test_the_stopping_check_is_the_final_check_on_the_stored_draws():
 
     import arviz as az
 
-    from rrfrei.calibration.sampler import check, thinning
+    from rrfrei.calibration.convergence import check, thinning
 
     rng = np.random.default_rng(3)
     n, m, k = 1200, 32, 3

@@ -101,7 +101,7 @@ def test_a_checkpoint_without_chain_reads_as_zero_steps_and_other_errors_show(tm
     import emcee
     import h5py
 
-    from rrfrei.calibration.sampler import _stored_iterations
+    from rrfrei.calibration.store import _stored_iterations
 
     path = tmp_path / "opt.h5"
     with h5py.File(path, "w") as f:

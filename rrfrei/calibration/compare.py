@@ -24,10 +24,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from rrfrei.calibration.results import Calibration, _as_calibration, _az
+from rrfrei.calibration.results import Calibration, _as_calibration, load_arviz
 from rrfrei.io import ShearTest, read_test
 
-__all__ = ["CompareResult", "compare", "elpd_loco", "cycle_groups", "runnable_laws"]
+__all__ = ["CompareResult", "compare", "elpd_loco", "cycle_groups", "runnable_laws", "too_few_laws"]
 
 
 def runnable_laws(test: ShearTest, laws: Sequence[str] | str,
@@ -78,7 +78,7 @@ def cycle_groups(disp: np.ndarray) -> np.ndarray:
 
 
 def _loco_from_ll(ll: np.ndarray, labels: np.ndarray, idata) -> tuple[float, float, pd.DataFrame]:
-    az = _az()
+    az = load_arviz()
     import xarray as xr
 
     C = int(labels.max()) + 1
@@ -208,7 +208,7 @@ def compare(
 
         laws, skipped = runnable_laws(test, laws, calibrate_kwargs.get("fixed"))
         if len(laws) < 2:
-            raise ValueError(_too_few(laws, skipped))
+            raise ValueError(too_few_laws(laws, skipped))
         cals = {law: calibrate(test, law, **calibrate_kwargs) for law in laws}
     else:
         if isinstance(src, Mapping):
@@ -228,7 +228,7 @@ def compare(
         if c.test.disp.shape != ref.disp.shape or not np.allclose(c.test.force, ref.force):
             raise ValueError(f"calibration {k!r} is of test {c.test.name!r}, not {ref.name!r}: "
                              "laws are compared on the same data only")
-    az = _az()
+    az = load_arviz()
     idatas = {k: c.idata for k, c in cals.items()}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -284,7 +284,7 @@ def compare(
                          calibrations=dict(cals), skipped=skipped)
 
 
-def _too_few(laws: Sequence[str], skipped: Mapping[str, str]) -> str:
+def too_few_laws(laws: Sequence[str], skipped: Mapping[str, str]) -> str:
     """The error of a comparison left with fewer than two laws, naming the skipped ones and why."""
     why = "; ".join(f"{k}: {v}" for k, v in skipped.items())
     return (f"need at least two laws this test can run to compare, got {list(laws)}"

@@ -13,6 +13,14 @@ def _fig(nrows=1, ncols=1, size=(6.0, 4.0)):
     return plt.subplots(nrows, ncols, figsize=size, constrained_layout=True, squeeze=False)
 
 
+def _axes(ax):
+    """(figure, axes): a new one-panel figure when ``ax`` is None, else ``ax`` and its figure."""
+    if ax is None:
+        fig, axes = _fig()
+        return fig, axes[0, 0]
+    return ax.figure, ax
+
+
 def pair_plot(cal, *, max_points: int = 1000, seed: int = 0):
     """Scatter matrix of the sampled quantities with histograms on the diagonal, MAP marked.
 
@@ -54,11 +62,7 @@ def pair_plot(cal, *, max_points: int = 1000, seed: int = 0):
 
 def loop_plot(pred, title: str = "", ax=None):
     """Measured loop, posterior mean and the 95 % band with noise."""
-    if ax is None:
-        fig, axes = _fig()
-        ax = axes[0, 0]
-    else:
-        fig = ax.figure
+    fig, ax = _axes(ax)
     d = 1e3 * np.asarray(pred.test.disp)
     order = np.arange(d.size)
     ax.fill_between(order * 0 + d, pred.lower, pred.upper, color="tab:blue", alpha=0.25, lw=0,
@@ -88,11 +92,7 @@ def loop_title(pred) -> str:
 
 def energy_plot(pred, ax=None):
     """Energy dissipated per cycle: test, MAP and the 95 % band of the model."""
-    if ax is None:
-        fig, axes = _fig()
-        ax = axes[0, 0]
-    else:
-        fig = ax.figure
+    fig, ax = _axes(ax)
     c = pred.cycles
     x = np.arange(len(c))
     if len(c):
@@ -112,11 +112,7 @@ def energy_plot(pred, ax=None):
 
 def cumulative_plot(pred, ax=None):
     """Cumulative dissipated energy against sample index (or time): test vs MAP."""
-    if ax is None:
-        fig, axes = _fig()
-        ax = axes[0, 0]
-    else:
-        fig = ax.figure
+    fig, ax = _axes(ax)
     t = pred.test.time
     ax.plot(t, pred.cumulative_test, color="0.4", label="test")
     ax.plot(t, pred.cumulative_map, color="tab:blue", label="MAP")

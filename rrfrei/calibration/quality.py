@@ -105,8 +105,8 @@ def at_bounds(spec, priors, names, theta, lower, upper) -> list[dict]:
     the physical bounds of ``names`` (the problem's).  An infinite side (a normal prior within
     infinite physical bounds) is never reached.
     """
+    from rrfrei.calibration.optimum import _support
     from rrfrei.calibration.priors import cube_range
-    from rrfrei.calibration.sampler import _support
 
     out = []
     for j, name in enumerate(names):

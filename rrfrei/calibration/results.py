@@ -35,7 +35,7 @@ from rrfrei.calibration.noise import NoiseModel, noise_model, simulate_noise
 from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, get
 
-__all__ = ["Calibration", "posterior_draws", "loglik_pointwise", "build_idata", "summary_table",
+__all__ = ["Calibration", "load_arviz", "posterior_draws", "loglik_pointwise", "build_idata", "summary_table",
            "simulate_noise", "draws_cap"]
 
 MAX_DRAWS = 1000
@@ -68,7 +68,8 @@ FLOAT32_GROUPS = ("log_likelihood", "posterior_predictive")
 """InferenceData groups :meth:`Calibration.to_netcdf` writes in float32."""
 
 
-def _az():
+def load_arviz():
+    """The ``arviz`` module, imported with its FutureWarnings silenced."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         import arviz as az
@@ -166,7 +167,7 @@ class Calibration:
     def to_netcdf(self, path: str | Path) -> Path:
         """Write the InferenceData (with everything needed by :meth:`from_netcdf`); the groups
         of :data:`FLOAT32_GROUPS` in float32 (see the module docstring)."""
-        az = _az()
+        az = load_arviz()
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         groups = {}
@@ -181,7 +182,7 @@ class Calibration:
     @classmethod
     def from_netcdf(cls, path: str | Path) -> Calibration:
         """Rebuild a calibration from a file written by :meth:`to_netcdf`."""
-        az = _az()
+        az = load_arviz()
         path = Path(path)
         if not path.exists():
             raise FileNotFoundError(2, "No such file", str(path))
@@ -304,7 +305,7 @@ def summary_table(idata, spec: LawSpec, mp: Mapping[str, float], free: tuple[str
                   noise: str | NoiseModel) -> pd.DataFrame:
     """The :attr:`Calibration.summary` of a posterior: unit, mean, MAP, sd, 2.5 %, 97.5 %, bulk
     ESS and R-hat (arviz) per sampled quantity."""
-    az = _az()
+    az = load_arviz()
     nm = noise_model(noise)
     names = list(free) + list(nm.params)
     post = idata.posterior
@@ -329,7 +330,7 @@ def build_idata(problem, chain, logp, *, burn: int, thin: int, theta_map, fixed,
     """InferenceData from the kept chain (steps, walkers, ndim) (see the module docstring)."""
     import xarray as xr
 
-    az = _az()
+    az = load_arviz()
     kept = chain[burn::thin]  # (draws, walkers, ndim)
     lp = logp[burn::thin]
     nd, nw, ndim = kept.shape

@@ -12,7 +12,8 @@ withheld effects (:mod:`.validate`) and the Markdown report (:mod:`.report`).
 """
 
 from rrfrei.gap.diagnose import CONFOUNDED, EffectScore, GapReport, Metrics, diagnose, diagnose_gap
-from rrfrei.gap.model import FitResult, GapModel, IsolatorFit, IsolatorModel, Prediction
+from rrfrei.gap.isolator import IsolatorFit, IsolatorModel
+from rrfrei.gap.model import FitResult, GapModel, Prediction
 
 __all__ = ["CONFOUNDED", "EffectScore", "FitResult", "GapModel", "GapReport", "IsolatorFit",
            "IsolatorModel", "Metrics", "Prediction", "diagnose", "diagnose_gap"]

@@ -25,7 +25,7 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    former "gain > 2 paired se" rule (issue 12).  The diagnosis is the significant effect with the
    largest held-out lpd gain (calibration gain without held-out data), or ``none``; with
    held-out data, a significant effect with fewer fitted parameters that no higher-ranked one
-   beats on the held-out blocks is named instead (parsimony, :func:`_parsimonious`);
+   beats on the held-out blocks is named instead (parsimony, :func:`rrfrei.gap.scoring._parsimonious`);
 4. confounding guard: a protocol whose amplitude only grows moves amplitude, dissipated energy
    and time together, so on the calibration test alone degradation, scragging, rollover and slip
    can stand in for one another.  Every refit starts from the baseline optimum and from the
@@ -62,343 +62,47 @@ Robustness, time and restarts (issue 16.4):
 
 from __future__ import annotations
 
-import hashlib
-import inspect
 import math
 import os
-import warnings
 from collections.abc import Sequence
-from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
-from scipy.special import logsumexp
 
-from rrfrei._json import number as _num
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap import decision as dec
+from rrfrei.gap.blas import one_blas_thread
 from rrfrei.gap.catalogue import ScreenContext, catalogue, screen_all
-from rrfrei.gap.model import FitResult, GapModel, IsolatorModel, velocity, white_noise
-from rrfrei.gap.residuals import cycle_levels, energy_error, gap, segment_table, systematic_gap
+from rrfrei.gap.checkpoint import Checkpoint, _Checkpoint, _fit_or_restore
+from rrfrei.gap.isolator import IsolatorModel
+from rrfrei.gap.model import FitResult, GapModel, velocity
+from rrfrei.gap.residuals import cycle_levels, segment_table
+from rrfrei.gap.results import GapReport
+from rrfrei.gap.scoring import (
+    EffectScore,
+    Metrics,
+    _beats,
+    _gain,
+    _parsimonious,
+    _score,
+    _Scorer,
+    loco,
+)
+from rrfrei.gap.verdict import VERDICTS, _verdict
 from rrfrei.io import ShearTest, read_test
-from rrfrei.notes import SEVERITIES, Note, as_dicts, ordered
+from rrfrei.notes import SEVERITIES, Note, ordered
 
 __all__ = ["EffectScore", "Metrics", "GapReport", "diagnose", "diagnose_gap", "CONFOUNDED", "Checkpoint",
-           "loco"]
+           "loco", "one_blas_thread", "VERDICTS"]
 
 CONFOUNDED = ("degradation", "mullins", "rollover", "slip")
 """Effects that a growing-amplitude protocol cannot tell apart on its own."""
 MIN_GAIN = dec.MIN_GAIN
 VARIANT_TRACE = 0.05
 """Least systematic-gap shrink of an effect's primary fit for its variants to be tried."""
-VERDICTS = ("none", "unexplained", "incomplete")
-"""The verdicts that name no effect (otherwise the verdict is the named effect)."""
-
-
-@dataclass(frozen=True)
-class Metrics:
-    """Gap, its systematic part, energy-per-cycle error and band coverage (pooled)."""
-
-    gap: float
-    systematic: float
-    energy_error: float
-    coverage: float
-
-    def as_dict(self) -> dict:
-        return {k: _num(v) for k, v in self.__dict__.items()}
-
-
-@dataclass(frozen=True)
-class EffectScore:
-    """One effect (or combination step) against its reference model."""
-
-    effect: str
-    law: str
-    screen: float
-    delta_elpd: float
-    se: float
-    delta_holdout: float
-    se_holdout: float
-    calibration: Metrics
-    holdout: Metrics | None
-    shrink_calibration: float
-    shrink_holdout: float
-    significant: bool
-    """The effect passes the decision rule (:mod:`rrfrei.gap.decision`) against its reference;
-    whether it is *named* is the report's verdict (a passing effect can be tied or not combined)."""
-    params: dict
-    note: str = ""
-    blocks_calibration: dec.RankEvidence | None = None
-    """Sign and signed-rank tests of the leave-one-block-out elpd gains on the calibration test."""
-    blocks_holdout: dec.RankEvidence | None = None
-    """The same over the held-out blocks' squared-error reductions (None without held-out data)."""
-    shrink_ci: dec.ShrinkEvidence | None = None
-    """Systematic-gap shrink with its block-bootstrap interval: pooled over the held-out tests, or
-    on the calibration test when there are none."""
-    why: str = ""
-    """The decision rule's reading in one line (why it passes or what fails)."""
-    variant: str = ""
-    """The variant of the effect that was fitted ("": the primary fit,
-    :class:`rrfrei.laws.effects.Variant`)."""
-
-    @property
-    def label(self) -> str:
-        """The effect's name, with its variant in parentheses when one was fitted."""
-        return f"{self.effect} ({self.variant})" if self.variant else self.effect
-
-    def evidence(self) -> dict:
-        """The decision rule's numbers (JSON-ready)."""
-        def d(x):
-            return None if x is None else x.as_dict()
-
-        return {"calibration_blocks": d(self.blocks_calibration), "holdout_blocks": d(self.blocks_holdout),
-                "shrink": d(self.shrink_ci),
-                "shrink_on": "holdout" if self.blocks_holdout is not None else "calibration",
-                "passes_rule": self.significant, "why": self.why}
-
-    def as_dict(self) -> dict:
-        return {
-            "effect": self.effect, "variant": self.variant, "law": self.law, "screen": _num(self.screen),
-            "delta_elpd": _num(self.delta_elpd), "se": _num(self.se),
-            "delta_holdout": _num(self.delta_holdout), "se_holdout": _num(self.se_holdout),
-            "shrink_calibration": _num(self.shrink_calibration),
-            "shrink_holdout": _num(self.shrink_holdout), "significant": self.significant,
-            "calibration": self.calibration.as_dict(),
-            "holdout": None if self.holdout is None else self.holdout.as_dict(),
-            "params": self.params, "note": self.note, "evidence": self.evidence(),
-        }
-
-
-@dataclass(frozen=True)
-class GapReport:
-    """Result of :func:`diagnose`: where the baseline misses, which effect, how far it shrinks.
-
-    ``diagnosis`` is the named effect, or ``"none"`` when no effect is named (``"incomplete"``
-    when effects were left unevaluated); ``verdict`` reads the gap: the named effect, ``"none"``
-    (what is left is noise), ``"unexplained"`` (a systematic gap that no catalogued effect
-    closes) or ``"incomplete"``; ``evidence`` holds the numbers behind the verdict (see
-    :func:`diagnose`).
-    """
-
-    law: str
-    diagnosis: str
-    combination: tuple[str, ...]
-    where: pd.DataFrame
-    screens: dict[str, float]
-    ranking: tuple[EffectScore, ...]
-    steps: tuple[EffectScore, ...]
-    baseline: tuple[Metrics, Metrics | None]
-    final: tuple[Metrics, Metrics | None]
-    notes: tuple[str, ...]
-    fits: dict = field(default_factory=dict, repr=False, compare=False)
-    calibration_data: object = field(default=None, repr=False, compare=False)
-    holdout_data: tuple = field(default=(), repr=False, compare=False)
-    skipped: dict[str, str] = field(default_factory=dict)
-    """Effects whose refit or scoring failed numerically: effect -> what failed where."""
-    not_evaluated: dict[str, str] = field(default_factory=dict)
-    """Effects not tried: effect -> why (``"time budget"``)."""
-    budget_message: str = ""
-    """The one line saying the time budget was reached ("" when it was not)."""
-    elapsed: float = float("nan")
-    """Wall time of the diagnosis [s]."""
-    reused: tuple[str, ...] = ()
-    """Steps whose fits were read from the checkpoint folder instead of refitted."""
-    verdict: str = ""
-    """An effect name, ``"none"``, ``"unexplained"`` or ``"incomplete"``."""
-    evidence: dict = field(default_factory=dict)
-    """Why the verdict (JSON-ready; keys in :func:`diagnose`)."""
-
-    @property
-    def complete(self) -> bool:
-        """True when every requested effect that the data can judge was refitted and scored."""
-        return not self.skipped and not self.not_evaluated
-
-    def as_dict(self) -> dict:
-        """The JSON summary of the CLI (gaps as NRMSE; holdout null without held-out data)."""
-        b, f = self.baseline, self.final
-        return {
-            "law": self.law,
-            "verdict": self.verdict,
-            "diagnosis": self.diagnosis,
-            "combination": list(self.combination),
-            "evidence": self.evidence,
-            "where": [{"axis": r.axis, "segment": r.segment, "error_share": _num(r.error_share),
-                       "coverage": _num(r.coverage)} for r in self.where.head(10).itertuples()],
-            "ranking": [{"effect": e.effect, "variant": e.variant, "delta_elpd": _num(e.delta_elpd),
-                         "se": _num(e.se),
-                         "shrink_calibration": _num(e.shrink_calibration),
-                         "shrink_holdout": _num(e.shrink_holdout), "passes_rule": e.significant,
-                         "named": e.effect in self.combination, **e.evidence()}
-                        for e in self.ranking],
-            "gap_before": {"calibration": _num(b[0].gap),
-                           "holdout": None if b[1] is None else _num(b[1].gap)},
-            "gap_after": {"calibration": _num(f[0].gap),
-                          "holdout": None if f[1] is None else _num(f[1].gap)},
-            "complete": self.complete,
-            "skipped": dict(self.skipped),
-            "not_evaluated": dict(self.not_evaluated),
-            "time_budget": {"reached": bool(self.budget_message), "message": self.budget_message or None,
-                            "elapsed_s": _num(self.elapsed)},
-            "reused_from_checkpoint": list(self.reused),
-            "notes": [str(n) for n in ordered(self.notes)],  # critical first
-            "notes_severity": as_dicts(self.notes),
-        }
-
-
-# ---------------------------------------------------------------------------------------------
-def loco(ll: np.ndarray, groups: np.ndarray) -> np.ndarray:
-    """PSIS leave-one-group-out elpd of every group from pointwise log-lik (S, n)."""
-    from arviz import psislw
-
-    G = int(groups.max()) + 1
-    sums = np.stack([ll[:, groups == g].sum(axis=1) for g in range(G)], axis=0)  # (G, S)
-    if sums.shape[1] < 20:  # too few valid draws for importance sampling: plug-in estimate
-        return sums.mean(axis=1)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        lw, _ = psislw(-sums.copy())
-    return logsumexp(lw + sums, axis=1)
-
-
-_loco = loco  # the name the engine used before it was public
-
-
-def _lppd_groups(ll: np.ndarray, groups: np.ndarray) -> np.ndarray:
-    """Held-out log predictive density summed per group: sum_i log mean_s p(y_i | theta_s)."""
-    lp = logsumexp(ll, axis=0) - math.log(ll.shape[0])
-    G = int(groups.max()) + 1
-    return np.array([lp[groups == g].sum() for g in range(G)])
-
-
-def _paired(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
-    d = np.asarray(a) - np.asarray(b)
-    return float(d.sum()), float(math.sqrt(d.size * d.var(ddof=1))) if d.size > 1 else float("nan")
-
-
-def _blocks(model: GapModel, data) -> np.ndarray:
-    """Blocks of the decision rule: :func:`rrfrei.gap.decision.blocks` of a displacement history
-    (half-cycles or time windows), else the model's own groups."""
-    if hasattr(data, "disp"):
-        return dec.blocks(np.asarray(data.disp))
-    return np.asarray(model.groups(data), dtype=np.int64)
-
-
-class _Scorer:
-    """Caches the per-dataset quantities and scores fits."""
-
-    def __init__(self, model: GapModel, cal, holdout: Sequence, seed: int = 0) -> None:
-        self.model = model
-        self.cal = cal
-        self.holdout = tuple(holdout)
-        self.seed = seed
-        self.g_cal = _blocks(model, cal)  # blocks of the decision rule
-        self.g_ho = [_blocks(model, d) for d in self.holdout]
-        self.c_cal = model.groups(cal)  # the model's groups (cycles): delta elpd and its paired se
-        self.c_ho = [model.groups(d) for d in self.holdout]
-        self.noise: dict[int, float] = {}
-
-    def set_noise(self, fit: FitResult) -> None:
-        for d in (self.cal, *self.holdout):
-            r = self.model.observed(d) - fit.predict(d).mean
-            self.noise[id(d)] = white_noise(r)
-
-    def metrics(self, fit: FitResult, data: Sequence) -> Metrics | None:
-        if not data:
-            return None
-        ys, fs, ss, ee, cov = [], [], [], [], []
-        for d in data:
-            pr = fit.predict(d)
-            y = self.model.observed(d)
-            ys.append(y)
-            fs.append(pr.mean)
-            ss.append(np.full(y.size, self.noise[id(d)]))
-            cov.append((y >= pr.lower) & (y <= pr.upper))
-            if hasattr(d, "disp"):
-                ee.append(energy_error(d.disp, y, pr.mean))
-        y, f, s = np.concatenate(ys), np.concatenate(fs), np.concatenate(ss)
-        sig = float(np.sqrt(np.mean(s**2)))
-        ee_ok = [e for e in ee if math.isfinite(e)]
-        return Metrics(gap(y, f), systematic_gap(y, f, sig), float(np.mean(ee_ok)) if ee_ok else float("nan"),
-                       float(np.mean(np.concatenate(cov))))
-
-    def residual(self, fit: FitResult, data: Sequence) -> dec.Residual | None:
-        """What is left of ``fit``'s gap on ``data`` (systematic part, excess over noise, rho1)."""
-        if not data:
-            return None
-        return dec.residual_state([self.model.observed(d) for d in data], [fit.predict(d).mean for d in data],
-                                  [self.noise[id(d)] for d in data])
-
-    def loco(self, fit: FitResult, blocks: bool = True) -> np.ndarray:
-        """Leave-one-out elpd per block (``blocks``) or per model group (cycle)."""
-        return _loco(fit.loglik(self.cal), self.g_cal if blocks else self.c_cal)
-
-    def lppd(self, fit: FitResult) -> np.ndarray:
-        """Held-out log predictive density per model group (cycle)."""
-        if not self.holdout:
-            return np.zeros(0)
-        return np.concatenate([_lppd_groups(fit.loglik(d), g) for d, g in zip(self.holdout, self.c_ho)])
-
-    def parts(self, fit: FitResult, ref: FitResult, data: Sequence | None = None,
-              blocks: Sequence | None = None) -> dec.BlockParts:
-        """Per-block squared errors of ``ref`` and ``fit`` on ``data`` (default: the held-out tests)."""
-        data = self.holdout if data is None else data
-        blocks = self.g_ho if blocks is None else blocks
-        return dec.BlockParts.concat([
-            dec.block_parts(self.model.observed(d), ref.predict(d).mean, fit.predict(d).mean, g,
-                            self.noise[id(d)]) for d, g in zip(data, blocks)])
-
-
-def _shrink(before: float, after: float) -> float:
-    return 1.0 - after / before if before > 0 else float("nan")
-
-
-def _score(sc: _Scorer, effect: str, fit: FitResult, ref: FitResult, screen: float,
-           ref_metrics: tuple[Metrics, Metrics | None]) -> EffectScore:
-    """Score ``fit`` against ``ref`` and apply the decision rule (:func:`rrfrei.gap.decision.significant`)."""
-    de, se = _paired(sc.loco(fit, blocks=False), sc.loco(ref, blocks=False))
-    cal_ev = dec.rank_evidence(sc.loco(fit) - sc.loco(ref))
-    mc = sc.metrics(fit, [sc.cal])
-    mh = sc.metrics(fit, sc.holdout)
-    ho_ev = sh_ev = None
-    if sc.holdout:
-        dh, seh = _paired(sc.lppd(fit), sc.lppd(ref))
-        sh = _shrink(ref_metrics[1].systematic, mh.systematic)
-        parts = sc.parts(fit, ref)
-        ho_ev = dec.rank_evidence(parts.gains)
-        sh_ev = dec.shrink_ci(parts, seed=sc.seed)
-    else:
-        dh, seh, sh = float("nan"), float("nan"), float("nan")
-        sh_ev = dec.shrink_ci(sc.parts(fit, ref, [sc.cal], [sc.g_cal]), seed=sc.seed)
-    sig, why = dec.significant(cal_ev, ho_ev, sh_ev)
-    return EffectScore(effect=effect, law=fit.name, screen=screen, delta_elpd=de, se=se,
-                       delta_holdout=dh, se_holdout=seh, calibration=mc, holdout=mh,
-                       shrink_calibration=_shrink(ref_metrics[0].systematic, mc.systematic),
-                       shrink_holdout=sh, significant=sig, params=dict(fit.params),
-                       blocks_calibration=cal_ev, blocks_holdout=ho_ev, shrink_ci=sh_ev, why=why)
-
-
-def _gain(sc: _Scorer, s: EffectScore) -> float:
-    """What effects are ranked by: the held-out lpd gain with held-out data, else the calibration
-    test's leave-one-block-out elpd gain."""
-    return s.delta_holdout if sc.holdout else s.delta_elpd
-
-
-def _beats_held_out(sc: _Scorer, a: FitResult, b: FitResult) -> bool:
-    """``a`` beats ``b`` by the block rank test of :mod:`rrfrei.gap.decision` over the held-out
-    blocks' squared-error reductions."""
-    return dec.rank_evidence(sc.parts(a, b).gains).passes()
-
-
-def _beats(sc: _Scorer, a: FitResult, b: FitResult) -> bool:
-    """``a`` beats ``b`` by the block rank test: on the held-out blocks with held-out data
-    (:func:`_beats_held_out`), else over the calibration test's leave-one-block-out elpd gains."""
-    if sc.holdout:
-        return _beats_held_out(sc, a, b)
-    return dec.rank_evidence(sc.loco(a) - sc.loco(b)).passes()
 
 
 def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: str, fit: FitResult,
@@ -454,36 +158,6 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
     return best_fit, best
 
 
-def _n_free(fit: FitResult) -> int:
-    return len(getattr(fit, "free", fit.params))
-
-
-def _parsimonious(sc: _Scorer, fits: dict, sig: list[EffectScore]) -> tuple[str, str]:
-    """The significant effect to name with held-out data, and a note ("" when it is the leader).
-
-    ``sig`` in ranking order (largest held-out lpd gain first).  An effect is *admissible* when
-    no significant effect ranked above it beats it on the held-out blocks (the block rank test of
-    :mod:`rrfrei.gap.decision` on the per-block squared-error reductions of the higher-ranked
-    model against it); the admissible effect with the fewest fitted parameters is named (the
-    leader on a tie).  This is the parsimony rule of model selection, the "one-standard-error
-    rule" (Hastie, Tibshirani & Friedman 2009, *The Elements of Statistical Learning*, 2nd ed.,
-    sec. 7.10): among models whose predictive error the data cannot tell apart, the simplest.  A
-    flexible candidate (pinching: band and slack, five parameters) can then no longer take the
-    place of a simpler effect it only imitates, while an effect whose held-out gain is
-    significantly larger than a simpler one's keeps its place.
-    """
-    leader = sig[0]
-
-    admissible = [o for i, o in enumerate(sig)
-                  if i == 0 or not any(_beats_held_out(sc, fits[a.law], fits[o.law]) for a in sig[:i])]
-    best = min(admissible, key=lambda o: (_n_free(fits[o.law]), sig.index(o)))
-    if best is leader:
-        return leader.effect, ""
-    return best.effect, (
-        f"{best.effect} named before {leader.effect} (larger held-out gain): it has fewer fitted "
-        f"parameters ({_n_free(fits[best.law])} against {_n_free(fits[leader.law])}) and no "
-        f"significant effect ranked above it beats it on the held-out blocks (parsimony)")
-
 
 def _monotone_amplitude(data) -> bool:
     if not hasattr(data, "disp"):
@@ -505,85 +179,6 @@ def _screen_context(model: GapModel, data, fit: FitResult) -> ScreenContext | No
                          energy=dissipated_energy(data.disp, data.force), first_cycle=seg.first,
                          has_time=bool(data.has_time))
 
-
-class Checkpoint:
-    """Finished fits saved as ``.npz`` in a folder, keyed by data, model settings, seed and step."""
-
-    def __init__(self, folder, model: GapModel, data, seed: int) -> None:
-        self.model, self.seed = model, seed
-        self.key = model.checkpoint_key(data) if folder is not None else None
-        self.folder = Path(folder) if self.key is not None else None
-        self.reused: list[str] = []
-        self.error = ""
-
-    def _path(self, step: str) -> Path:
-        h = hashlib.sha256(f"{self.key}|seed={self.seed}|{step}".encode()).hexdigest()[:16]
-        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in step)
-        return self.folder / f"{safe}-{h}.npz"
-
-    def get(self, step: str) -> FitResult | None:
-        if self.folder is None:
-            return None
-        path = self._path(step)
-        if not path.is_file():
-            return None
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                fit = self.model.restore({k: z[k] for k in z.files})
-        except (OSError, ValueError, KeyError, TypeError, NotImplementedError):
-            return None  # unreadable or from another version: fit again and overwrite
-        self.reused.append(step)
-        return fit
-
-    def put(self, step: str, model: GapModel, fit: FitResult) -> None:
-        if self.folder is None:
-            return
-        state = model.fit_state(fit)
-        if state is None:
-            return
-        path = self._path(step)
-        try:
-            self.folder.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_name(path.stem + ".part.npz")
-            np.savez(tmp, **state)
-            os.replace(tmp, path)  # atomic: an interrupted run never leaves a half-written fit
-        except OSError as exc:
-            self.error = f"checkpoint not written ({type(exc).__name__}: {exc})"
-
-
-_Checkpoint = Checkpoint  # the name the engine used before it was public
-
-
-def _fit(model: GapModel, data, budget: TimeBudget, **kw) -> FitResult:
-    """``model.fit``, passing the budget to models whose optimiser can check it."""
-    budget.check()
-    if "budget" in inspect.signature(model.fit).parameters:
-        return model.fit(data, budget=budget, **kw)
-    return model.fit(data, **kw)
-
-
-def _fit_or_restore(ck: _Checkpoint, step: str, model: GapModel, data, budget: TimeBudget,
-                    **kw) -> FitResult:
-    fit = ck.get(step)
-    if fit is None:
-        fit = _fit(model, data, budget, **kw)
-        ck.put(step, model, fit)
-    return fit
-
-
-@contextmanager
-def one_blas_thread():
-    """Run the block with the BLAS libraries on one thread (``threadpoolctl``), then restore them.
-
-    The least-squares fits call LAPACK's SVD of a tall, thin Jacobian (a few thousand rows, ~10
-    columns) hundreds of times; multithreaded OpenBLAS takes 10-100 ms per call on a shared,
-    loaded machine against 0.25 ms on one thread (measured on the 2-core machine: the SVD was 6 of
-    14 s of a diagnosis idle and 75 of 114 s under load).
-    """
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
-        yield
 
 
 def _failure(step: str, exc: BaseException) -> str:
@@ -752,77 +347,120 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
         ranking = tuple(sorted(scores, key=lambda s: -_gain(sc, s) if math.isfinite(_gain(sc, s))
                                else math.inf))
         sig = [s for s in ranking if s.significant]
-        diagnosis = "none"
-        tied: list[str] = []
-        if sig:
-            diagnosis = sig[0].effect
-            if sc.holdout:
-                diagnosis, why = _parsimonious(sc, fits, sig)
-                if why:
-                    notes.append(why)
-            if not sc.holdout and _monotone_amplitude(data):
-                win = fits[sig[0].law]
-                for other in sig[1:]:
-                    if other.effect in CONFOUNDED or diagnosis in CONFOUNDED:
-                        if not _beats(sc, win, fits[other.law]):
-                            tied.append(other.effect)
-                if tied:
-                    notes.append(Note(
-                        f"the calibration protocol's amplitude only grows, so {diagnosis} cannot be told "
-                        f"apart from {', '.join(tied)} on it alone: give held-out tests (--holdout)",
-                        "critical"))
-                    tied.insert(0, diagnosis)
-                    diagnosis = "none"
-        combination: list[str] = [] if diagnosis == "none" else [diagnosis]
+        diagnosis, tied = _name(sc, fits, sig, data, notes)
+        combination: list[str] = []
         steps: list[EffectScore] = []
-        final = bm
-        current = base
-        stopped = False  # the budget cut the combination search short
-        if combination:
+        final, current, stopped = bm, base, False
+        if diagnosis != "none":
             first = next(s for s in ranking if s.effect == diagnosis)
-            steps.append(first)
-            final = (first.calibration, first.holdout)
-            current = fits[first.law]
-            pool = [s.effect for s in sig if s.effect != diagnosis]
-            while combine and pool and len(combination) < max_combination and not stopped:
-                cand = []
-                bar.total = (getattr(bar, "total", 0) or 0) + len(pool)
-                for e in pool:
-                    if budget.expired():
-                        stopped = True
-                        break
-                    bar.set_postfix_str(f"combine +{e}")
-                    label = "+".join(combination + [e])
-                    try:
-                        picked = {k: v for k, v in chosen.items() if k in combination + [e]}
-                        step_model = (model.augment(combination + [e], variants=picked) if picked
-                                      else model.augment(combination + [e]))
-                        tag = "".join(f"|{k}:{v}" for k, v in sorted(picked.items()))
-                        fit = _fit_or_restore(ck, f"combination-{label}{tag}", step_model,
-                                              data, budget, seed=seed, start=current)
-                        cand.append((replace(_score(sc, e, fit, current, screens.get(e, float("nan")),
-                                                    final), variant=chosen.get(e, "")), fit))
-                        fits[fit.name] = fit
-                    except BudgetExceeded:
-                        stopped = True
-                        break
-                    except NUMERICAL_ERRORS as exc:
-                        notes.append(f"combination step +{e} skipped: "
-                                     f"{_failure(f'refit of {model.name}+{label}', exc)}")
-                    bar.update()
-                if stopped:
-                    notes.append(f"combination search stopped by the time budget after "
-                                 f"{'+'.join(combination)}: further effects were not tried")
-                    break
-                cand = [c for c in cand if c[0].significant]
-                if not cand:
-                    break
-                best, fit = max(cand, key=lambda c: _gain(sc, c[0]))
-                combination.append(best.effect)
-                steps.append(best)
-                final = (best.calibration, best.holdout)
-                current = fit
-                pool.remove(best.effect)
+            combination, steps, final, current, stopped = _combine(
+                model, sc, ck, data, budget, seed, bar, notes, first=first, sig=sig, chosen=chosen, fits=fits,
+                screens=screens, combine=combine, max_combination=max_combination)
+    diagnosis, missing, budget_message = _closing_notes(diagnosis, effects, skipped, untried, stopped,
+                                                        ranking, budget, fits, ck, notes)
+    try:
+        verdict, evidence = _verdict(sc, diagnosis, combination, base, current, ranking, steps, where,
+                                     tied, missing)
+    except NUMERICAL_ERRORS as exc:  # the verdict's numbers come from fits already scored
+        verdict, evidence = diagnosis, {"error": _failure("verdict", exc)}
+    return GapReport(law=model.name, diagnosis=diagnosis, combination=tuple(combination), where=where,
+                     screens=screens, ranking=ranking, steps=tuple(steps), baseline=bm, final=final,
+                     notes=tuple(ordered(notes)), fits=fits, calibration_data=data,
+                     holdout_data=tuple(holdout),
+                     skipped=skipped, not_evaluated=untried, budget_message=budget_message,
+                     elapsed=budget.elapsed, reused=tuple(ck.reused), verdict=verdict, evidence=evidence)
+
+
+def _name(sc: _Scorer, fits: dict, sig: list[EffectScore], data, notes: list) -> tuple[str, list[str]]:
+    """The effect to name among the significant ones ``sig`` (ranking order), and the effects tied
+    with it: the parsimony rule with held-out data (step 3 of the module docstring) and the
+    confounding guard without (step 4)."""
+    diagnosis = "none"
+    tied: list[str] = []
+    if sig:
+        diagnosis = sig[0].effect
+        if sc.holdout:
+            diagnosis, why = _parsimonious(sc, fits, sig)
+            if why:
+                notes.append(why)
+        if not sc.holdout and _monotone_amplitude(data):
+            win = fits[sig[0].law]
+            for other in sig[1:]:
+                if other.effect in CONFOUNDED or diagnosis in CONFOUNDED:
+                    if not _beats(sc, win, fits[other.law]):
+                        tied.append(other.effect)
+            if tied:
+                notes.append(Note(
+                    f"the calibration protocol's amplitude only grows, so {diagnosis} cannot be told "
+                    f"apart from {', '.join(tied)} on it alone: give held-out tests (--holdout)",
+                    "critical"))
+                tied.insert(0, diagnosis)
+                diagnosis = "none"
+    return diagnosis, tied
+
+
+def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBudget, seed: int, bar,
+             notes: list, *, first: EffectScore, sig: list[EffectScore], chosen: dict, fits: dict,
+             screens: dict, combine: bool, max_combination: int):
+    """Greedy combination from the named effect ``first`` (step 5 of the module docstring): add the
+    best further significant effect, refitted from the current combination, while it stays
+    significant against it.  Returns (combination, steps, final metrics, current fit, stopped by
+    the time budget)."""
+    diagnosis = first.effect
+    combination: list[str] = [diagnosis]
+    steps: list[EffectScore] = [first]
+    final = (first.calibration, first.holdout)
+    current = fits[first.law]
+    stopped = False  # the budget cut the combination search short
+    pool = [s.effect for s in sig if s.effect != diagnosis]
+    while combine and pool and len(combination) < max_combination and not stopped:
+        cand = []
+        bar.total = (getattr(bar, "total", 0) or 0) + len(pool)
+        for e in pool:
+            if budget.expired():
+                stopped = True
+                break
+            bar.set_postfix_str(f"combine +{e}")
+            label = "+".join(combination + [e])
+            try:
+                picked = {k: v for k, v in chosen.items() if k in combination + [e]}
+                step_model = (model.augment(combination + [e], variants=picked) if picked
+                              else model.augment(combination + [e]))
+                tag = "".join(f"|{k}:{v}" for k, v in sorted(picked.items()))
+                fit = _fit_or_restore(ck, f"combination-{label}{tag}", step_model,
+                                      data, budget, seed=seed, start=current)
+                cand.append((replace(_score(sc, e, fit, current, screens.get(e, float("nan")),
+                                            final), variant=chosen.get(e, "")), fit))
+                fits[fit.name] = fit
+            except BudgetExceeded:
+                stopped = True
+                break
+            except NUMERICAL_ERRORS as exc:
+                notes.append(f"combination step +{e} skipped: "
+                             f"{_failure(f'refit of {model.name}+{label}', exc)}")
+            bar.update()
+        if stopped:
+            notes.append(f"combination search stopped by the time budget after "
+                         f"{'+'.join(combination)}: further effects were not tried")
+            break
+        cand = [c for c in cand if c[0].significant]
+        if not cand:
+            break
+        best, fit = max(cand, key=lambda c: _gain(sc, c[0]))
+        combination.append(best.effect)
+        steps.append(best)
+        final = (best.calibration, best.holdout)
+        current = fit
+        pool.remove(best.effect)
+    return combination, steps, final, current, stopped
+
+
+def _closing_notes(diagnosis: str, effects: list[str], skipped: dict, untried: dict, stopped: bool,
+                   ranking, budget: TimeBudget, fits: dict, ck: _Checkpoint, notes: list
+                   ) -> tuple[str, dict[str, str], str]:
+    """The notes on what was not evaluated, the time budget, the fits' own notes and the
+    checkpoint; a diagnosis of none becomes "incomplete" when effects are missing.  Returns
+    (diagnosis, missing effects, the budget message)."""
     missing = {**skipped, **untried}
     if missing:
         listed = "; ".join(f"{e}: {why}" for e, why in missing.items())
@@ -853,82 +491,7 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                      f"({', '.join(ck.reused)})")
     if ck.error:
         notes.append(Note(ck.error, "warning"))
-    try:
-        verdict, evidence = _verdict(sc, diagnosis, combination, base, current, ranking, steps, where,
-                                     tied, missing)
-    except NUMERICAL_ERRORS as exc:  # the verdict's numbers come from fits already scored
-        verdict, evidence = diagnosis, {"error": _failure("verdict", exc)}
-    return GapReport(law=model.name, diagnosis=diagnosis, combination=tuple(combination), where=where,
-                     screens=screens, ranking=ranking, steps=tuple(steps), baseline=bm, final=final,
-                     notes=tuple(ordered(notes)), fits=fits, calibration_data=data,
-                     holdout_data=tuple(holdout),
-                     skipped=skipped, not_evaluated=untried, budget_message=budget_message,
-                     elapsed=budget.elapsed, reused=tuple(ck.reused), verdict=verdict, evidence=evidence)
-
-
-def _residuals(sc: _Scorer, fit: FitResult) -> dict:
-    out = {"calibration": sc.residual(fit, [sc.cal])}
-    if sc.holdout:
-        out["holdout"] = sc.residual(fit, sc.holdout)
-    return out
-
-
-def _verdict(sc: _Scorer, diagnosis: str, combination: list[str], base: FitResult, final: FitResult,
-             ranking: tuple[EffectScore, ...], steps: list[EffectScore], where: pd.DataFrame,
-             tied: list[str], missing: dict[str, str]) -> tuple[str, dict]:
-    """The verdict and its evidence (see :func:`diagnose`)."""
-    rule = ("an effect is named when its leave-one-block-out gains on the calibration test total > "
-            f"{dec.MIN_GAIN:g} nats and pass a sign or Wilcoxon signed-rank test over blocks at "
-            f"p < {dec.ALPHA / 2:g}" + (f", and on the held-out tests its per-block squared-error "
-                                         f"reductions pass the same test and the block-bootstrap "
-                                         f"{dec.LEVEL:.0%} interval of the held-out systematic-gap "
-                                         f"shrink lies above {dec.MIN_SHRINK:.0%}" if sc.holdout else
-                                         f", and the block-bootstrap {dec.LEVEL:.0%} interval of the "
-                                         f"calibration test's systematic-gap shrink lies above "
-                                         f"{dec.MIN_SHRINK:.0%}")
-            + f"; what is left is noise when its MSE / sigma^2 - 1 <= {dec.EXCESS:g}, its "
-            f"systematic NRMSE <= {dec.SYS_FLOOR:.0%}, or its residuals are white (|lag-1 "
-            "autocorrelation| < 2 / sqrt(n))")
-    before = {k: v.as_dict() for k, v in _residuals(sc, base).items()}
-    ev: dict = {"rule": rule, "baseline": before, "tied": list(tied)}
-    scored = [s for s in ranking if math.isfinite(s.shrink_holdout if sc.holdout else s.shrink_calibration)]
-    key = (lambda s: s.shrink_holdout) if sc.holdout else (lambda s: s.shrink_calibration)
-    closest = max(scored, key=key) if scored else None
-    if closest is not None:
-        ce = closest.evidence()
-        ev["closest"] = {"effect": closest.effect, **ce, "shrink": _num(key(closest)),
-                         "shrink_ci": ce["shrink"]}
-    if diagnosis not in VERDICTS:
-        left = _residuals(sc, final)
-        ev["named"] = {"effect": diagnosis, "combination": list(combination),
-                       "steps": [{"effect": s.effect, **s.evidence()} for s in steps]}
-        ev["left"] = {k: v.as_dict() for k, v in left.items()}
-        ev["left_is_noise"] = all(v.noise_only for v in left.values())
-        return diagnosis, ev
-    if diagnosis == "incomplete":
-        ev["not_evaluated"] = dict(missing)
-        return "incomplete", ev
-    res = _residuals(sc, base)
-    noisy = [k for k, v in res.items() if not v.noise_only]
-    ev["systematic_on"] = noisy
-    if not noisy:
-        ev["reasons"] = [
-            f"{k}: systematic gap {_pct(v.systematic)} of the RMS force, "
-            f"MSE / sigma^2 - 1 = {v.excess:.2f} "
-            f"(noise: <= {dec.EXCESS:g}, <= {dec.SYS_FLOOR:.0%} or white); "
-            "lag-1 autocorrelation of the residuals "
-            f"{v.rho1:.2f} ({'white' if v.white else 'not white'} at 2 / sqrt(n))" for k, v in res.items()]
-        if closest is not None:
-            ev["reasons"].append(f"no effect passes the block rule; closest {closest.effect}: {closest.why}")
-        return "none", ev
-    ev["where"] = [{"axis": r.axis, "segment": r.segment, "error_share": _num(r.error_share),
-                    "rms_over_noise": _num(r.rms_over_noise)} for r in where.head(3).itertuples()]
-    ev["size"] = {k: _num(v.systematic) for k, v in res.items()}
-    return "unexplained", ev
-
-
-def _pct(x: float) -> str:
-    return "n/a" if not math.isfinite(x) else f"{100 * x:.1f} %"
+    return diagnosis, missing, budget_message
 
 
 def _as_test(t, what: str) -> ShearTest:

@@ -27,7 +27,7 @@ from rrfrei.gap.validation import (
     make_case_tests,
     run_table,
 )
-from rrfrei.gap.validation.forms import Signal, _EPSlider, series_solve
+from rrfrei.gap.validation.forms import EPSlider, Signal, series_solve
 from rrfrei.io import ShearTest
 
 __all__ = ["CASES", "make_tests", "ValidationResult", "validate", "BASE_LAW", "BASE_PARAMS", "FIXED"]
@@ -132,4 +132,4 @@ def _slip(u, t, p, fs, ks):
         float(p[2] * p[0]),
         float(p[1]),
     )
-    return series_solve(sig, _EPSlider(ks, fs))
+    return series_solve(sig, EPSlider(ks, fs))

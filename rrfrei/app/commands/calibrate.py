@@ -19,8 +19,8 @@ from rrfrei.calibration import (
     predict,
     run_stats,
 )
-from rrfrei.calibration.compare import _az
 from rrfrei.calibration.likelihood import DENSE_POINTS, HALF_CYCLE_POINTS, LIKELIHOOD_POINTS
+from rrfrei.calibration.results import load_arviz
 from rrfrei.calibration.sampler import CONVERGENCE_RULE, MAX_STEPS
 from rrfrei.io import DISP_UNITS, FORCE_UNITS, bundled_tests, load_test, read_test
 from rrfrei.laws import get
@@ -261,7 +261,7 @@ def run(args: argparse.Namespace) -> int:
         cal.summary.to_csv(out / "summary.csv")
         pred.cycles.to_csv(out / "cycles.csv", index=False)
         pred.asce.to_csv(out / "asce_7_22.csv", index=False)
-        az = _az()
+        az = load_arviz()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             loo = az.loo(cal.idata, var_name="force")

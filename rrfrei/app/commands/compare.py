@@ -10,7 +10,7 @@ from pathlib import Path
 
 from rrfrei.app.commands.calibrate import add_column_args, add_common, load
 from rrfrei.calibration import BoundWarning, ConvergenceWarning, calibrate, compare
-from rrfrei.calibration.compare import _too_few, runnable_laws
+from rrfrei.calibration.compare import runnable_laws, too_few_laws
 from rrfrei.laws import OPENSEES_LAWS, get
 from rrfrei.notes import Note, label, ordered
 
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     for law, why in skipped.items():
         print(f"rrfrei compare: warning: skipped {law}: {why}", file=sys.stderr)
     if len(laws) < 2:
-        raise ValueError(_too_few(laws, skipped))
+        raise ValueError(too_few_laws(laws, skipped))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cals = {}

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from rrfrei.budget import seconds_arg
 from rrfrei.gap.validation import CONTROLS, FULL, Settings, cases, run_table
-from rrfrei.gap.validation.report import _pct, write
+from rrfrei.gap.validation.report import percent, write
 
 EXAMPLE = """\
 Example:
@@ -120,7 +120,7 @@ def run(args) -> int:
     s = res.shrink_named.dropna()
     top = g["top1_per_effect_ge_95"]
     print(
-        f"top-1 {_pct(res.accuracy)} (goal >= 95 % per effect: "
+        f"top-1 {percent(res.accuracy)} (goal >= 95 % per effect: "
         f"{'met' if top['met'] else 'missed by ' + ', '.join(top['missed_by'])}); "
         f"false alarms {res.false_alarms} of {len(res.control_cases)} controls; held-out shrink when named: "
         + (f"median {s.median():.2f}, min {s.min():.2f}" if len(s) else "no effect named")

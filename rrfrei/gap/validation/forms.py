@@ -70,7 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import erf
 
-__all__ = ["Form", "FORMS", "Signal", "forms_of", "series_solve"]
+__all__ = ["EPSlider", "Form", "FORMS", "Signal", "forms_of", "series_solve"]
 
 
 @dataclass(frozen=True)
@@ -169,7 +169,7 @@ def _softplus_hinge(x: np.ndarray, onset: float, width: float) -> np.ndarray:
 
 
 # --- series solves ---------------------------------------------------------------------------------
-class _EPSlider:
+class EPSlider:
     """Elastic-plastic slider: stiffness ``k``, capacity ``cap(slip travel)`` [kN]."""
 
     def __init__(self, k: float, fs: float, static: float = 1.0, decay: float = 1e-3) -> None:
@@ -392,7 +392,7 @@ def _asym_strength(s: Signal, a: float) -> np.ndarray:
 
 
 def _slip_ep(s: Signal, c: float) -> np.ndarray:
-    return series_solve(s, _EPSlider(20.0 * s.k_init, c * s.f_pk))
+    return series_solve(s, EPSlider(20.0 * s.k_init, c * s.f_pk))
 
 
 def _slip_smooth(s: Signal, c: float) -> np.ndarray:
@@ -401,7 +401,7 @@ def _slip_smooth(s: Signal, c: float) -> np.ndarray:
 
 
 def _slip_stick(s: Signal, c: float) -> np.ndarray:
-    return series_solve(s, _EPSlider(50.0 * s.k_init, c * s.f_pk, static=1.2, decay=1e-3))
+    return series_solve(s, EPSlider(50.0 * s.k_init, c * s.f_pk, static=1.2, decay=1e-3))
 
 
 def _pin_gauss(s: Signal, p: float) -> np.ndarray:

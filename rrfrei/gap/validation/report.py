@@ -16,12 +16,12 @@ from rrfrei.gap.validation.cases import CONTROLS, NOISE_RANGE
 from rrfrei.gap.validation.forms import FORMS
 from rrfrei.gap.validation.run import VERDICTS, ValidationResult
 
-__all__ = ["markdown", "figure", "write", "COMMAND"]
+__all__ = ["markdown", "figure", "write", "percent", "COMMAND"]
 
 COMMAND = "python -m rrfrei.app gap-validate --seeds 10 --out docs/gap"
 
 
-def _pct(x: float) -> str:
+def percent(x: float) -> str:
     """Percent, to the unit; to a tenth where the unit would round to 0 or 100 % and the
     fraction is not exactly 0 or 1 (one miss in 270 is 99.6 %, not 100 %)."""
     if x is None or not math.isfinite(x):
@@ -89,13 +89,13 @@ def markdown(res: ValidationResult, *, command: str = COMMAND, title_note: str =
     ]
     top = g["top1_per_effect_ge_95"]
     if top["met"]:
-        lines.append(f"- top-1 >= 95 % for every effect: **met** (overall {_pct(res.accuracy)}).")
+        lines.append(f"- top-1 >= 95 % for every effect: **met** (overall {percent(res.accuracy)}).")
     else:
         per = top["value"]
         lines.append(
             "- top-1 >= 95 % for every effect: **missed** for "
-            + ", ".join(f"{k} ({_pct(per[k])})" for k in top["missed_by"])
-            + f" (overall {_pct(res.accuracy)})."
+            + ", ".join(f"{k} ({percent(per[k])})" for k in top["missed_by"])
+            + f" (overall {percent(res.accuracy)})."
         )
     fa = g["no_false_alarm"]
     lines.append(
@@ -125,7 +125,7 @@ def markdown(res: ValidationResult, *, command: str = COMMAND, title_note: str =
     per = res.top1("effect")
     lines += _table(
         ["effect", "cases", "named", "top-1", "miss rate"],
-        [[k, int(r.cases), int(r.named), _pct(r.top1), _pct(r.miss_rate)] for k, r in per.iterrows()],
+        [[k, int(r.cases), int(r.named), percent(r.top1), percent(r.miss_rate)] for k, r in per.iterrows()],
     )
     if len(e) and "effect_gap" in e:
         # thirds of each form's cases ranked by the gap their effect makes (direction-free: a
@@ -140,7 +140,8 @@ def markdown(res: ValidationResult, *, command: str = COMMAND, title_note: str =
             cells = []
             for k in range(3):
                 sel = e[m & (third == k)]
-                cells.append(f"{_pct(float((sel.verdict != eff).mean()))} of {len(sel)}" if len(sel) else "")
+                cells.append(f"{percent(float((sel.verdict != eff).mean()))} of {len(sel)}"
+                             if len(sel) else "")
             rows.append([eff] + cells)
         lines += _table(["effect", *names], rows)
     lines += ["", "## Per generator form", ""]
@@ -155,8 +156,8 @@ def markdown(res: ValidationResult, *, command: str = COMMAND, title_note: str =
                 eff,
                 form,
                 int(r.cases),
-                _pct(r.top1),
-                _pct(r.miss_rate),
+                percent(r.top1),
+                percent(r.miss_rate),
                 f"{_f(grp.effect_gap.min() * 100, '.0f')}-{_f(grp.effect_gap.max() * 100, '.0f')} %",
                 _f(named.shrink.median()) if len(named) else "",
                 _variants_taken(named),
@@ -212,7 +213,7 @@ def markdown(res: ValidationResult, *, command: str = COMMAND, title_note: str =
                     r.key,
                     r.base,
                     _f(r.size, ".3g"),
-                    _pct(r.effect_gap),
+                    percent(r.effect_gap),
                     r.verdict,
                     r.best,
                     _f(r.best_shrink),
@@ -280,7 +281,7 @@ def figure(res: ValidationResult):
                 )
     ax.set_xlabel("verdict of the diagnosis")
     ax.set_ylabel("true effect (generator)")
-    ax.set_title(f"gap-validate: top-1 {_pct(res.accuracy)}, false alarms {res.false_alarms}")
+    ax.set_title(f"gap-validate: top-1 {percent(res.accuracy)}, false alarms {res.false_alarms}")
     fig.colorbar(im, ax=ax, label="fraction of the row's cases")
     return fig
 

@@ -187,7 +187,7 @@ def _init_worker() -> None:
     forces, :mod:`rrfrei.calibration._batch`) on one thread, since the table already runs one
     process per core.  The CMA-ES batches are small (a population of ~12 histories of ~600
     samples), so a second thread per process only contends: measured on the 2-core machine under
-    load, the baseline's two global searches (:meth:`rrfrei.gap.model.IsolatorModel._base_start`)
+    load, the baseline's two global searches (:meth:`rrfrei.gap.isolator.IsolatorModel._base_start`)
     took 1.0 s of CPU and 1.0 s of wall time on one thread against 2.9 s and 2.2-2.4 s on two, with
     the same optimum (each history is computed alone: the thread count cannot change a force)."""
     import warnings
