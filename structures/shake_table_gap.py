@@ -52,7 +52,6 @@ import numpy as np
 import pandas as pd
 
 from ground_motions import Record
-from rrfrei._json import number as _num
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.calibration.checks import nrmse
@@ -61,6 +60,7 @@ from rrfrei.gap.catalogue import catalogue
 from rrfrei.gap.diagnose import Checkpoint, GapReport, diagnose, loco
 from rrfrei.gap.model import LEVEL, RETRY_SUBSTEPS, IsolatorModel, simulate_retry
 from rrfrei.io import ShearTest
+from rrfrei.jsonable import number as _num
 from structures.building import Isolator, ShearBuilding
 from structures.building_model import (
     SYSTEM_EFFECTS,

@@ -63,7 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rrfrei._json import number as _num
+from rrfrei.jsonable import number as _num
 
 __all__ = ["ALPHA", "BOOT", "EXCESS", "LEVEL", "MIN_GAIN", "MIN_SHRINK", "SYS_FLOOR", "WINDOWS", "BlockParts",
            "RankEvidence", "ShrinkEvidence", "Residual", "blocks", "block_parts", "sign_test",

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rrfrei._json import number as _num
 from rrfrei.gap.design import PropertyModification, design_gap, plot_design_gap, property_modification
 from rrfrei.gap.diagnose import GapReport
+from rrfrei.jsonable import number as _num
 from rrfrei.notes import label as note_label
 from rrfrei.notes import ordered
 

@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-from rrfrei._json import number as _num
 from rrfrei.gap import decision as dec
+from rrfrei.jsonable import number as _num
 from rrfrei.notes import as_dicts, ordered
 
 __all__ = ["EffectScore", "GapReport", "Metrics"]

@@ -8,11 +8,11 @@ import math
 
 import pandas as pd
 
-from rrfrei._json import number as _num
 from rrfrei.gap import decision as dec
 from rrfrei.gap.model import FitResult
 from rrfrei.gap.results import EffectScore
 from rrfrei.gap.scoring import _Scorer
+from rrfrei.jsonable import number as _num
 
 __all__ = ["VERDICTS"]
 

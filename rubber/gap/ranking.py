@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rrfrei._json import number as _num
 from rrfrei.gap.model import white_noise
 from rrfrei.gap.residuals import gap, systematic_gap
+from rrfrei.jsonable import number as _num
 from rubber.gap.effects import EFFECTS
 from rubber.gap.model import RubberFit, RubberModel, _tests
 

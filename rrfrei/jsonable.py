@@ -1,4 +1,5 @@
-"""JSON-ready values: the one rule by which every command's ``--json`` writes a number."""
+"""JSON-ready values: the one rule by which every command's ``--json`` writes a number (public:
+every package's reports use it)."""
 
 from __future__ import annotations
 
