@@ -55,7 +55,14 @@ def test_the_bindings_of_a_law_are_its_registry_kernels():
     assert specialise.bindings(bw) == {"law_step": bw.step, "law_step_robust": bw.step_robust}
     pl = get("plasticity")
     assert specialise.bindings(pl) == {"law_step": pl.step, "law_step_robust": pl.step}
-    assert specialise.history(bw) is bw.drive and specialise.history(bw, True) is bw.drive_robust
+    fast = specialise.history_bindings(bw)  # the one history loop, bw's fast solver in its slot
+    assert fast["law_step"] is bw.step and fast["law_run"] is bw.fast_run
+    assert specialise.history_bindings(bw, robust=True)["law_step"] is bw.step_robust
+    assert specialise.history_bindings(pl)["law_run"] is specialise.history_bindings(pl, True)["law_run"]
+    for law in (bw, pl):  # every law's driver is an instance of the one loop
+        for robust in (False, True):
+            file = Path(specialise.history(law, robust).py_func.__code__.co_filename).name
+            assert file.startswith(f"rrfrei_laws__history__{law.name}_")
     aug = get("plasticity+rate")
     assert specialise.bindings(aug)["law_step"] is aug.step  # an instance, like any other step
     assert specialise.history(aug) is specialise.history(aug)  # one instance per law
