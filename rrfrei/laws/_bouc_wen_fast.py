@@ -360,8 +360,9 @@ def fast_setup(p):
 @njit(cache=True, inline="always")
 def fast_run(p, ctx, sc, st, disp, k, substeps, force, tangent):
     """The ``law_run`` slot (contract in :mod:`rrfrei.laws._history`): :func:`_fast_run` from the
-    flat sub-step index ``k``, or ``k`` itself where the fast solver is off (integer eta)."""
+    flat sub-step index ``k``, or -1 where the fast solver is off (integer eta): the loop then
+    leaves every sub-step of the history to the step."""
     c, lim = ctx
     if lim[1] > 0.0:
         return _fast_run(p, c, lim, sc, st, disp, k, substeps, force, tangent)
-    return k
+    return -1

@@ -11,9 +11,10 @@ Slots (bound per law by :func:`rrfrei.laws.specialise.history`):
   advances from the flat sub-step index ``k`` (sample ``k // substeps``) as far as it certifies
   its result to be the step's own, writes the forces and tangents of the samples it completes,
   commits its last sub-step and returns the index of the first sub-step it leaves to
-  ``law_step`` (``k`` itself when it takes none); ``ctx = law_run_setup(p)`` holds its
-  constants.  A law without one binds :func:`rrfrei.laws._util.no_run` (returns ``k``:
-  inlined, the test folds away and the loop is the plain one).
+  ``law_step`` (``k`` itself when it takes none, -1 when it will take none in this history:
+  it is then not called again); ``ctx = law_run_setup(p)`` holds its constants.  A law
+  without one binds :func:`rrfrei.laws._util.no_run` (returns ``k``: inlined, the test folds
+  away and the loop is the plain one).
 
 Each instance inlines its law's step in the loop, which is about twice as fast as calling a law
 through a dispatch at every step (``benchmarks/bench_laws.py``).  A law thus has two instances:
@@ -59,25 +60,32 @@ def walk(p, sc, st, disp, time, use_time, substeps, force, tangent, deviated):
         deviated[i] = 0
     ctx = law_run_setup(p)
     n = disp.shape[0]
+    u_prev = 0.0
+    t_prev = time[0] if use_time else 0.0
     i = 0
     j = 0
     kr = 0
+    run = True  # the fast solver may take sub-steps (-1 from it: not in this history)
     ran = False  # the fast solver stopped at sub-step (i, j): the step takes it
     while i < n:
-        u_prev = disp[i - 1] if i > 0 else 0.0
-        t_prev = (time[i - 1] if i > 0 else time[0]) if use_time else 0.0
         du, v, dt = increment(i, disp, time, use_time, substeps, u_prev, t_prev)
         f = 0.0
         kt = 0.0
-        while j < substeps:
+        done = True
+        j0 = j
+        for j in range(j0, substeps):
             if ran:
                 ran = False
-            else:
+            elif run:
                 k = i * substeps + j
                 kr = law_run(p, ctx, sc, st, disp, k, substeps, force, tangent)
                 if kr != k:
-                    ran = True
-                    break
+                    if kr < 0:
+                        run = False
+                    else:
+                        ran = True
+                        done = False
+                        break
             u = disp[i] if j == substeps - 1 else u_prev + du * (j + 1)
             f, kt, status = law_step(p, sc, u, v, dt, st)
             if status != 0:
@@ -88,15 +96,19 @@ def walk(p, sc, st, disp, time, use_time, substeps, force, tangent, deviated):
             if not (np.isfinite(f) and np.isfinite(kt)):
                 return -3, i
             commit(sc, st)
-            j += 1
-        if j == substeps:
+        if done:
             force[i] = f
             tangent[i] = kt
+            u_prev = disp[i]
+            if use_time:
+                t_prev = time[i]
             i += 1
             j = 0
         else:  # the fast solver took sub-steps k .. kr - 1
             i = kr // substeps
             j = kr - i * substeps
+            u_prev = disp[i - 1] if i > 0 else 0.0
+            t_prev = (time[i - 1] if i > 0 else time[0]) if use_time else 0.0
     return 0, -1
 
 

@@ -32,32 +32,32 @@ plan_settled_index = -1
 
 @njit(cache=True, inline="always")
 def begin(p, sc, st):
-    """Work arrays (u, v, f, k) and the carried state: the arrays ``(sc, st)`` themselves."""
-    return (np.zeros(2), np.zeros(2), np.zeros(2), np.zeros((2, 2))), (sc, st)
+    """Work arrays (u, v, f, k) and the state arrays in the constants; the carried state is a
+    placeholder (0.0: nothing to carry, no reference counts in the loop)."""
+    return (np.zeros(2), np.zeros(2), np.zeros(2), np.zeros((2, 2)), sc, st), 0.0
 
 
 @njit(cache=True, inline="always")
 def update(p, ctx, cs, u0, u1, v0, v1, dt):
     """One step of the law from the committed state ``sc`` into the trial state ``st``
     (twice with ``plan_static_calls = 2``, unless the first call is settled)."""
-    u, v, f, k = ctx
-    sc, st = cs
-    u[0] = u0
-    u[1] = u1
-    v[0] = v0
-    v[1] = v1
-    status = plan_step(p, sc, u, v, dt, st, f, k)
+    ctx[0][0] = u0
+    ctx[0][1] = u1
+    ctx[1][0] = v0
+    ctx[1][1] = v1
+    status = plan_step(p, ctx[4], ctx[0], ctx[1], dt, ctx[5], ctx[2], ctx[3])
     if plan_static_calls == 2 and status == 0:  # OpenSees' second update() of the step
-        if plan_settled_index < 0 or st[plan_settled_index] == 0.0:
-            status = plan_step(p, sc, u, v, dt, st, f, k)
+        if plan_settled_index < 0 or ctx[5][plan_settled_index] == 0.0:
+            status = plan_step(p, ctx[4], ctx[0], ctx[1], dt, ctx[5], ctx[2], ctx[3])
+    f = ctx[2]
+    k = ctx[3]
     return status, cs, f[0], f[1], k[0, 0], k[0, 1], k[1, 0], k[1, 1]
 
 
 @njit(cache=True, inline="always")
 def commit(ctx, ts):
     """Copy the trial state into the committed state."""
-    sc, st = ts
-    _copy(sc, st)
+    _copy(ctx[4], ctx[5])
     return ts
 
 
