@@ -68,6 +68,21 @@ def test_the_bindings_of_a_law_are_its_registry_kernels():
     assert specialise.history(aug) is specialise.history(aug)  # one instance per law
 
 
+def test_every_history_driver_is_an_instance_of_the_one_loop_of_its_dimension():
+    """One whole-history loop per dimension: a law brings its local solver (and a fast solver, a
+    scalar carrier) as slots, never a loop of its own."""
+    from rrfrei.laws import plan
+
+    for name in names():
+        for robust in (False, True):
+            file = Path(specialise.history(get(name), robust).py_func.__code__.co_filename).name
+            assert file.startswith(f"rrfrei_laws__history__{name}_"), (name, robust, file)
+    for name in plan.names():
+        for drive in (plan.registry.driver(plan.get(name)), plan.registry.generic_driver(plan.get(name))):
+            file = Path(drive.py_func.__code__.co_filename).name
+            assert file.startswith(f"rrfrei_laws_plan__history__plan_{name}_"), (name, file)
+
+
 def test_a_law_entry_without_a_kernel_is_refused_naming_the_field():
     with pytest.raises(ValueError, match=r"law 'nokernel': step = None is not a kernel"):
         LawSpec(name="nokernel", params=(ParamSpec("k", "kN/m", 0.0, 1.0, "k"),), state_size=0,
