@@ -47,7 +47,7 @@ with ``bouc_wen.drive_exact`` (OpenSees' iteration at every step) to ~1e-15.
 import numpy as np
 from numba import njit
 
-from rrfrei.laws._util import DBL_EPSILON, powabs, sgn
+from rrfrei.laws._util import DBL_EPSILON, bearing_constants, powabs, sgn
 
 NC = 32
 """Taylor coefficients stored per series (the 16-term polynomial, extended to 32 terms)."""
@@ -184,12 +184,7 @@ def _fast_run(p, c, lim, sc, st, disp, k, substeps, force, tangent):
     when the history is done), with ``sc`` and ``st`` holding the last fast sub-step,
     committed.
     """
-    k_init = p[0]
-    qd = p[1]
-    k0 = (1.0 - p[2]) * k_init
-    k2 = p[2] * k_init
-    k3 = p[3] * k_init
-    mu = p[4]
+    k_init, qd, k0, k2, k3, mu = bearing_constants(p)
     eta = p[5]
     beta = p[6]
     gamma = p[7]

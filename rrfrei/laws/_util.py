@@ -30,6 +30,15 @@ def powabs(x, e):
 
 
 @njit(cache=True, inline="always")
+def bearing_constants(p):
+    """``(k_init, qd, k0, k2, k3, mu)`` of an elastomeric bearing's parameter row ``p = (k_init,
+    qd, alpha1, alpha2, mu, ...)`` (OpenSees' ``elastomericBearing*`` arguments; kN, m):
+    k0 = (1 - alpha1) k_init, k2 = alpha1 k_init, k3 = alpha2 k_init [kN/m]."""
+    k_init = p[0]
+    return k_init, p[1], (1.0 - p[2]) * k_init, p[2] * k_init, p[3] * k_init, p[4]
+
+
+@njit(cache=True, inline="always")
 def power_excess(k, onset, n, ex):
     """(force magnitude, tangent) ``(k u_s (e / u_s)^n / n, k (e / u_s)^(n - 1))`` of a power
     ``n`` of the excess ``e = ex > 0`` over an onset ``u_s = onset > 0``: the shape of the

@@ -67,7 +67,7 @@ from rrfrei.laws._bouc_wen_robust import (  # noqa: F401
     solve_bracketed,
     solve_robust,
 )
-from rrfrei.laws._util import DBL_EPSILON, powabs, sgn
+from rrfrei.laws._util import DBL_EPSILON, bearing_constants, powabs, sgn
 from rrfrei.laws.plasticity import PARAMS as _PLASTICITY_PARAMS
 from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, elastomeric_bearing, register
 
@@ -96,9 +96,8 @@ def _pm1(za, eta):
 @njit(cache=True, inline="always")
 def _constants(p):
     """(k_init, qd, k0, k2, k3, mu, eta, beta, gamma) of a parameter row (module docstring)."""
-    k_init = p[0]
-    return (k_init, p[1], (1.0 - p[2]) * k_init, p[2] * k_init, p[3] * k_init, p[4], p[5], p[6],
-            p[7])
+    k_init, qd, k0, k2, k3, mu = bearing_constants(p)
+    return k_init, qd, k0, k2, k3, mu, p[5], p[6], p[7]
 
 
 @njit(cache=True, error_model="numpy")
