@@ -55,10 +55,32 @@ def test_the_bindings_of_a_law_are_its_registry_kernels():
     assert specialise.bindings(bw) == {"law_step": bw.step, "law_step_robust": bw.step_robust}
     pl = get("plasticity")
     assert specialise.bindings(pl) == {"law_step": pl.step, "law_step_robust": pl.step}
-    assert specialise.history(bw) is bw.drive and specialise.history(bw, True) is bw.drive_robust
+    fast = specialise.history_bindings(bw)  # the one history loop, bw's fast solver in its slot
+    assert fast["law_step"] is bw.step and fast["law_run"] is bw.fast_run
+    assert specialise.history_bindings(bw, robust=True)["law_step"] is bw.step_robust
+    assert specialise.history_bindings(pl)["law_run"] is specialise.history_bindings(pl, True)["law_run"]
+    for law in (bw, pl):  # every law's driver is an instance of the one loop
+        for robust in (False, True):
+            file = Path(specialise.history(law, robust).py_func.__code__.co_filename).name
+            assert file.startswith(f"rrfrei_laws__history__{law.name}_")
     aug = get("plasticity+rate")
     assert specialise.bindings(aug)["law_step"] is aug.step  # an instance, like any other step
     assert specialise.history(aug) is specialise.history(aug)  # one instance per law
+
+
+def test_every_history_driver_is_an_instance_of_the_one_loop_of_its_dimension():
+    """One whole-history loop per dimension: a law brings its local solver (and a fast solver, a
+    scalar carrier) as slots, never a loop of its own."""
+    from rrfrei.laws import plan
+
+    for name in names():
+        for robust in (False, True):
+            file = Path(specialise.history(get(name), robust).py_func.__code__.co_filename).name
+            assert file.startswith(f"rrfrei_laws__history__{name}_"), (name, robust, file)
+    for name in plan.names():
+        for drive in (plan.registry.driver(plan.get(name)), plan.registry.generic_driver(plan.get(name))):
+            file = Path(drive.py_func.__code__.co_filename).name
+            assert file.startswith(f"rrfrei_laws_plan__history__plan_{name}_"), (name, file)
 
 
 def test_a_law_entry_without_a_kernel_is_refused_naming_the_field():

@@ -27,7 +27,7 @@ import rrfrei
 import structures
 from rrfrei.errors import NumericalFailure
 from rrfrei.laws import bouc_wen as bw
-from rrfrei.laws import get
+from rrfrei.laws import get, specialise
 from rrfrei.simulate import LocalSolverDeviation
 from structures import Isolator
 
@@ -113,7 +113,7 @@ def test_robust_completes_solves_the_step_equation_and_reports_where_it_deviated
     assert samples[0] == fail and devs[0].law == "bouc_wen"
     assert f"at {samples.size} sample(s) (sample {fail}" in str(devs[0])
     # before the first deviation the run is OpenSees' (bit for bit)
-    _, F_os, _, _ = _raw(bw.drive, p, u)
+    _, F_os, _, _ = _raw(specialise.history(bw.SPEC), p, u)
     np.testing.assert_array_equal(F[:fail], F_os[:fail])
     # every step, robust or not, solves the backward-Euler equation of z
     res, scale = residual(p, u, z_of(p, u, F))
@@ -124,11 +124,11 @@ def test_robust_completes_solves_the_step_equation_and_reports_where_it_deviated
     P = SPEC.pack(p)
     for i in samples[:5]:
         dev = np.zeros(i, dtype=np.int64)
-        s, _, sc, st_ = _raw(bw.drive_robust, p, u[:i], dev)
+        s, _, sc, st_ = _raw(specialise.history(bw.SPEC, True), p, u[:i], dev)
         assert s == (0, -1)
         f, kt, status = bw.step(P, sc, u[i], 0.0, 1.0, st_)
         r = (u[i] - sc[0]) / (P[1] / ((1 - P[2]) * P[0]))
-        assert status in (-1, -2) or not bw._near_root(sc[1], r, st_[1], eta, 0.5, gamma)
+        assert status in (-1, -2) or not bw.near_root(sc[1], r, st_[1], eta, 0.5, gamma)
 
 
 @pytest.mark.parametrize("eta", [0.3, 0.51])
@@ -158,7 +158,7 @@ def test_robust_run_is_the_opensees_run_wherever_opensees_converges(eta, beta, g
     rng = np.random.default_rng(seed)
     u = np.cumsum(rng.normal(0.0, amp / np.sqrt(n), n)) + amp * np.sin(np.linspace(0, 6, n))
     F_r, devs = robust(p, u, substeps=substeps)
-    F_o = _raw(bw.drive, p, u, substeps=substeps)[1]
+    F_o = _raw(specialise.history(bw.SPEC), p, u, substeps=substeps)[1]
     first = devs[0].samples[0] if devs else u.size
     np.testing.assert_array_equal(F_r[:first], F_o[:first])
     try:
@@ -170,11 +170,11 @@ def test_robust_run_is_the_opensees_run_wherever_opensees_converges(eta, beta, g
         # where OpenSees completes, a deviation is a step where it "converged" away from a root
         for i in devs[0].samples if devs and substeps == 1 else ():
             dev = np.zeros(i, dtype=np.int64)
-            _, _, sc, st_ = _raw(bw.drive_robust, p, u[:i], dev)
+            _, _, sc, st_ = _raw(specialise.history(bw.SPEC, True), p, u[:i], dev)
             P = SPEC.pack(p)
             _, _, status = bw.step(P, sc, u[i], 0.0, 1.0, st_)
             r = (u[i] - sc[0]) / (P[1] / ((1 - P[2]) * P[0]))
-            assert status != 0 or not bw._near_root(sc[1], r, st_[1], eta, beta, p["gamma"])
+            assert status != 0 or not bw.near_root(sc[1], r, st_[1], eta, beta, p["gamma"])
 
 
 @settings(max_examples=50, deadline=None)
@@ -201,7 +201,7 @@ def test_bracketed_solver_finds_opensees_root_where_it_is_unique(eta, beta, gamm
     _, _, status = bw.step(p, sc, r * uy, 0.0, 1.0, st_)
     z, s2, _ = bw.solve_bracketed(zc, (r * uy) / uy, eta, beta, gamma)
     assert s2 == 0 and abs(z) <= zmax * (1 + 1e-15)
-    if status == 0 and bw._near_root(zc, r, st_[1], eta, beta, gamma):
+    if status == 0 and bw.near_root(zc, r, st_[1], eta, beta, gamma):
         assert abs(z - st_[1]) <= 1e-12 * max(1.0, abs(z))
     elif status == 0:  # OpenSees stopped away from a root (its step fell below 1e-12 near z = 0)
         assert abs(st_[1]) < 1e-6 and eta < 1.0

@@ -2,6 +2,9 @@
 
 from numba import njit
 
+DBL_EPSILON = 2.220446049250313e-16
+"""C's ``DBL_EPSILON`` (2^-52), as OpenSees uses it."""
+
 
 @njit(cache=True, inline="always")
 def sgn(x):
@@ -27,6 +30,15 @@ def powabs(x, e):
 
 
 @njit(cache=True, inline="always")
+def bearing_constants(p):
+    """``(k_init, qd, k0, k2, k3, mu)`` of an elastomeric bearing's parameter row ``p = (k_init,
+    qd, alpha1, alpha2, mu, ...)`` (OpenSees' ``elastomericBearing*`` arguments; kN, m):
+    k0 = (1 - alpha1) k_init, k2 = alpha1 k_init, k3 = alpha2 k_init [kN/m]."""
+    k_init = p[0]
+    return k_init, p[1], (1.0 - p[2]) * k_init, p[2] * k_init, p[3] * k_init, p[4]
+
+
+@njit(cache=True, inline="always")
 def power_excess(k, onset, n, ex):
     """(force magnitude, tangent) ``(k u_s (e / u_s)^n / n, k (e / u_s)^(n - 1))`` of a power
     ``n`` of the excess ``e = ex > 0`` over an onset ``u_s = onset > 0``: the shape of the
@@ -38,7 +50,7 @@ def power_excess(k, onset, n, ex):
 
 @njit(cache=True, inline="always")
 def increment(i, disp, time, use_time, substeps, u_prev, t_prev):
-    """(du, v, dt) of sub-increment steps into sample ``i`` (see :func:`rrfrei.laws._history.drive`).
+    """(du, v, dt) of sub-increment steps into sample ``i`` (see :func:`rrfrei.laws._history.walk`).
 
     ``du`` is the displacement sub-increment [m], ``v`` the velocity [m/s] (0 in statics and at
     the first sample), ``dt`` the sub-step [s] (1.0 in statics, as OpenSees' pseudo-time).
@@ -86,3 +98,17 @@ def store_plan_state(st, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11):
     st[7] = e01
     st[8] = e10
     st[9] = e11
+
+
+@njit(cache=True, inline="always")
+def no_run_setup(p):
+    """The ``law_run_setup`` slot of a law without a fast history solver
+    (:mod:`rrfrei.laws._history`): no constants."""
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def no_run(p, ctx, sc, st, disp, k, substeps, force, tangent):
+    """The ``law_run`` slot of a law without a fast history solver (:mod:`rrfrei.laws._history`):
+    takes no sub-step (returns ``k``; inlined, so the loop's test of it folds away)."""
+    return k

@@ -41,8 +41,8 @@ State (float64[4])::
 
 from numba import njit
 
+from rrfrei.laws._bouc_wen_robust import STATUS_ROBUST, solve_robust
 from rrfrei.laws._util import sgn
-from rrfrei.laws.bouc_wen import STATUS_ROBUST, solve_robust
 from rrfrei.laws.registry import OPENSEES_VERTICAL, LawSpec, OpenSeesElement, ParamSpec, Prior, register
 
 PI_OPENSEES = 3.14159
@@ -114,8 +114,8 @@ def step(p, sc, u, v, dt, st):
 @njit(cache=True, error_model="numpy")
 def step_robust(p, sc, u, v, dt, st):
     """:func:`step`, and where the element's Newton iteration fails (status -1 or -2) the root of
-    the same backward-Euler equation by :func:`rrfrei.laws.bouc_wen.solve_robust` from the
-    committed z (status :data:`rrfrei.laws.bouc_wen.STATUS_ROBUST`, a deviation from OpenSees).
+    the same backward-Euler equation by :func:`rrfrei.laws._bouc_wen_robust.solve_robust` from the
+    committed z (status :data:`rrfrei.laws._bouc_wen_robust.STATUS_ROBUST`, a deviation from OpenSees).
 
     The equation is Bouc-Wen's with eta = 2, the sign coefficient 0.9 and the constant 0.1
     (module docstring), so its bracket (|z| <= 1) and its safeguarded Newton apply unchanged.

@@ -213,8 +213,10 @@ class LawSpec:
     step : the jitted step kernel (contract in the module docstring).
     step_robust : optional jitted robust local solve with the same contract (a positive status
         where it deviated from OpenSees); it enables ``local_solver="robust"``.
-    drive, drive_robust : optional jitted whole-history drivers that replace the ones
-        instantiated from :mod:`rrfrei.laws._history` (same contracts), e.g. a faster solver.
+    fast_run, fast_setup : optional jitted fast solver for whole histories, bound into the
+        ``law_run`` / ``law_run_setup`` slots of the history loop (contract in
+        :mod:`rrfrei.laws._history`): it takes the sub-steps where it certifies the step's own
+        result, the step takes the others (Bouc-Wen's :mod:`rrfrei.laws._bouc_wen_fast`).
     local_iteration : False for a closed-form update (``local_solver="robust"`` is then a no-op).
     check : optional callable taking the packed parameter array and raising ValueError for
         cross-parameter constraints.
@@ -229,8 +231,8 @@ class LawSpec:
     description: str
     step: Callable = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
     step_robust: Callable | None = field(default=None, compare=False, repr=False)
-    drive: Callable | None = field(default=None, compare=False, repr=False)
-    drive_robust: Callable | None = field(default=None, compare=False, repr=False)
+    fast_run: Callable | None = field(default=None, compare=False, repr=False)
+    fast_setup: Callable | None = field(default=None, compare=False, repr=False)
     opensees: OpenSeesElement | None = None
     uses_velocity: bool = False
     local_iteration: bool = True
@@ -244,7 +246,9 @@ class LawSpec:
                 f"law {self.name!r}: step = {self.step!r} is not a kernel; expected the law's "
                 "jitted step(p, sc, u, v, dt, st) -> (force, tangent, status)"
             )
-        for name in ("step_robust", "drive", "drive_robust"):
+        if (self.fast_run is None) != (self.fast_setup is None):
+            raise ValueError(f"law {self.name!r}: fast_run and fast_setup come together (or neither)")
+        for name in ("step_robust", "fast_run", "fast_setup"):
             value = getattr(self, name)
             if value is not None and not callable(value):
                 raise ValueError(f"law {self.name!r}: {name} = {value!r} is not a kernel (or None)")

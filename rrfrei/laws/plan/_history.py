@@ -1,31 +1,35 @@
-"""Template of a plan law's whole-history driver: one time loop, instantiated per law.
+"""Template of a plan law's whole-history driver: the one time loop of the plan laws.
 
-Slots (bound per law by :func:`rrfrei.laws.plan.registry.driver`): ``plan_step``, the law's step
-kernel (contract in :mod:`rrfrei.laws.plan.registry`); the constants ``plan_static_calls``, the
-number of times (1 or 2) it is called per step, and ``plan_settled_index``, the state entry that
-says a second call would change nothing (``PlanLawSpec.static_calls`` and ``.settled_index``).
+Slots (bound per law by :func:`rrfrei.laws.plan.registry.driver`): the law's local solver in the
+form the loop carries it, ``plan_begin``, ``plan_update``, ``plan_commit`` and ``plan_end``::
 
-Each sample is one step of OpenSees' static displacement-controlled analysis of the 3-D element
-(``tests/opensees_plan.py``), which updates the element twice: once in ``LoadControl::newStep``
-and once more after the first ``Newton`` correction (zero on the imposed shear DOFs, after which
-``NormDispIncr`` is met).  A law whose step starts from the current trial state (a local
-iteration from the trial z, as ``ElastomericBearingBoucWen3d::update``) can move in that second
-call by rounding, or fail in it; such a law sets ``static_calls = 2`` and is called twice here,
-with the same displacement, the trial state of the first call carried into the second (skipped
-when the first call flags its result as settled: the second would repeat it bit for bit).
+    ctx, cs = plan_begin(p, sc, st)           constants and the committed state, as carried
+    (status, ts, f0, f1, k00, k01, k10, k11) = plan_update(p, ctx, cs, u0, u1, v0, v1, dt)
+                                              one step from the committed state: the trial
+                                              state, forces [kN] and tangent [kN/m]
+    cs = plan_commit(ctx, ts)                 the trial state committed
+    plan_end(sc, st, ctx, cs, ts)             the carried states written back to the arrays
+
+A law with only an array step kernel (``PlanLawSpec.step``) is carried by the adapter
+:mod:`rrfrei.laws.plan._arrays` (the state stays in ``sc`` and ``st``; committing copies); a law
+may carry its state in scalars instead (``PlanLawSpec.carrier``, Bouc-Wen's
+:mod:`rrfrei.laws.plan.bouc_wen`: no loads and stores around each step), with the same results
+bit for bit.  The step is that of OpenSees' static displacement-controlled analysis of the 3-D
+element (``tests/opensees_plan.py``), whose two ``update()`` calls per step
+(``PlanLawSpec.static_calls``) are the local solver's business.
 """
 
 import numpy as np
 from numba import njit
 
-from rrfrei.laws._util import commit
 from rrfrei.laws.plan.registry import NONFINITE_DISP
 from rrfrei.laws.specialise import unbound
 
-SLOTS = ("plan_step", "plan_static_calls", "plan_settled_index")
-plan_step = unbound("plan_step")
-plan_static_calls = 1  # constants bound per law: Numba folds the branches below
-plan_settled_index = -1
+SLOTS = ("plan_begin", "plan_update", "plan_commit", "plan_end")
+plan_begin = unbound("plan_begin")
+plan_update = unbound("plan_update")
+plan_commit = unbound("plan_commit")
+plan_end = unbound("plan_end")
 
 
 @njit(cache=True)
@@ -51,7 +55,9 @@ def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
     Parameters
     ----------
     p : the law's parameters (kN, m, s).
-    sc, st : committed and trial state, both the initial state on entry; updated in place.
+    sc, st : committed and trial state, both the initial state on entry; updated in place, so
+        after a failure at sample ``index`` they hold the last committed and the failed trial
+        state.
     disp : (n, 2) displacement [m]; ``disp[0]`` is applied to the virgin state as a first step
         from zero, as an OpenSees displacement-controlled analysis starting at rest.
     time : (n,) time [s], used when ``use_time``; otherwise dt = 1 and velocity 0 (statics).
@@ -67,40 +73,45 @@ def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
     bad = first_nonfinite(disp)
     if bad >= 0:
         return NONFINITE_DISP, bad
-    u = np.zeros(2)
-    v = np.zeros(2)
-    u_prev = np.zeros(2)
-    du = np.zeros(2)
-    f = np.zeros(2)
-    k = np.zeros((2, 2))
+    ctx, cs = plan_begin(p, sc, st)
     t_prev = time[0] if use_time else 0.0
+    up0 = 0.0
+    up1 = 0.0
     for i in range(disp.shape[0]):
+        x0 = disp[i, 0]
+        x1 = disp[i, 1]
         dt = 1.0
         if use_time:
             dt = (time[i] - t_prev) / substeps
             if dt <= 0.0:
                 dt = 1.0
-        for a in range(2):
-            du[a] = (disp[i, a] - u_prev[a]) / substeps
-            v[a] = du[a] / dt if (use_time and i > 0) else 0.0
+        dp0 = (x0 - up0) / substeps
+        dp1 = (x1 - up1) / substeps
+        v0 = dp0 / dt if (use_time and i > 0) else 0.0
+        v1 = dp1 / dt if (use_time and i > 0) else 0.0
+        f0 = f1 = k00 = k01 = k10 = k11 = 0.0
         for j in range(substeps):
-            for a in range(2):
-                u[a] = disp[i, a] if j == substeps - 1 else u_prev[a] + du[a] * (j + 1)
-            status = plan_step(p, sc, u, v, dt, st, f, k)
-            if plan_static_calls == 2 and status == 0:  # OpenSees' second update() of the step
-                if plan_settled_index < 0 or st[plan_settled_index] == 0.0:
-                    status = plan_step(p, sc, u, v, dt, st, f, k)
-            if status != 0:
-                return status, i
-            if not (np.isfinite(f[0]) and np.isfinite(f[1]) and np.isfinite(k[0, 0])
-                    and np.isfinite(k[0, 1]) and np.isfinite(k[1, 0]) and np.isfinite(k[1, 1])):
-                return -3, i
-            commit(sc, st)
-        for a in range(2):
-            force[i, a] = f[a]
-            u_prev[a] = disp[i, a]
-            for b in range(2):
-                tangent[i, a, b] = k[a, b]
+            u0 = x0
+            u1 = x1
+            if j != substeps - 1:
+                u0 = up0 + dp0 * (j + 1)
+                u1 = up1 + dp1 * (j + 1)
+            status, ts, f0, f1, k00, k01, k10, k11 = plan_update(p, ctx, cs, u0, u1, v0, v1, dt)
+            # f and k finite: x * 0 is 0 for every finite x, NaN for an infinity or NaN
+            if status != 0 or not (f0 * 0.0 + f1 * 0.0 + k00 * 0.0 + k01 * 0.0 + k10 * 0.0
+                                   + k11 * 0.0 == 0.0):
+                plan_end(sc, st, ctx, cs, ts)
+                return (status if status != 0 else -3), i
+            cs = plan_commit(ctx, ts)
+        force[i, 0] = f0
+        force[i, 1] = f1
+        tangent[i, 0, 0] = k00
+        tangent[i, 0, 1] = k01
+        tangent[i, 1, 0] = k10
+        tangent[i, 1, 1] = k11
+        up0 = x0
+        up1 = x1
         if use_time:
             t_prev = time[i]
+    plan_end(sc, st, ctx, cs, cs)
     return 0, -1

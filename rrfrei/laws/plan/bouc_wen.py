@@ -39,9 +39,9 @@ again from the trial z the first one reached, so it can move z by rounding (a la
 from there) or fail where the first converged (e.g. with eta = 0.375 and z driven from 0 to
 2633 by one step, a spurious root, below, the second call oscillates between two doubles 3 ulp
 apart with |dz| = 1.5e-12 > tol until iter = 25).  The plan history driver therefore makes both
-calls per step (its own driver :func:`drive`, equal bit for bit to the generic one of
-:mod:`rrfrei.laws.plan._history` with ``PlanLawSpec.static_calls = 2``, which calls this step
-twice); the plan building calls it once per Newton iteration, as OpenSees' transient analysis
+calls per step (this law's carrier :func:`carry_update`, equal bit for bit to the array
+carrier :mod:`rrfrei.laws.plan._arrays` with ``PlanLawSpec.static_calls = 2``, which calls this
+step twice); the plan building calls it once per Newton iteration, as OpenSees' transient analysis
 does.  The second call is skipped when it provably returns the same bits: the first call's last
 iteration left z bit for bit unchanged (state entry 10, ``settled_index``), so the second would
 repeat that iteration exactly (about 60% of the steps of the benchmark's figure-eight).
@@ -76,8 +76,8 @@ Speed: the powers above; ``pow`` is glibc's ``__ieee754_pow`` itself, without th
 (:func:`_bind_pow`, same values).  The arithmetic is written once, on scalars (:func:`update`:
 state in, state out, inlined by LLVM); :func:`step` loads its arrays, calls it and writes each
 output once (with an array touched in several branches Numba kept an atomic incref/decref of
-four array arguments per call), and the history driver :func:`drive` (``PlanLawSpec.history``)
-carries the state through the time loop in local scalars, runs OpenSees' two calls of a step as
+four array arguments per call), and the carrier (:func:`carry_update`, ``PlanLawSpec.carrier``)
+carries the state through the history loop in local scalars, runs OpenSees' two calls of a step as
 one local iteration restarted (each call with its own anchor, as two :func:`step` calls), and
 computes force and tangent once per step.
 
@@ -123,8 +123,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 from rrfrei.laws._util import powabs, sgn, store_plan, store_plan_state
-from rrfrei.laws.plan._history import first_nonfinite
-from rrfrei.laws.plan.registry import NONFINITE_DISP, PlanLawSpec, register
+from rrfrei.laws.plan.registry import Carrier, PlanLawSpec, register
 
 A = 1.0
 MAX_ITER = 25
@@ -297,7 +296,7 @@ def update(k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
     ppw4, pc0, pc1, f0, f1, k00, k01, k10, k11)``: the status (0, -1, -2), the new trial state
     entries [10], [2:10], [11:19] (entries [0:2] are (u0, u1)), the forces [kN] and the tangent
     [kN/m] (row-major).  Written once for :func:`step` (arrays, one call: the plan building)
-    and the history driver :func:`drive` (scalars carried through the time loop, two calls);
+    and the carrier :func:`carry_update` (scalars carried through the history loop, two calls);
     ``forceinline``: LLVM inlines it into both (``calls`` a constant there), so the tuple costs
     nothing."""
     du0 = u0 - uc0
@@ -483,121 +482,66 @@ def _store_state(s, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11, settled, pv, pz0
     s[POW + 7] = pc1
 
 
-@njit(cache=True, error_model="numpy")
-def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
-    """bouc_wen's whole-history driver (``PlanLawSpec.history``): the generic plan driver
-    :func:`rrfrei.laws.plan._history.drive`, same contract and same bits (forces, tangents,
-    status, failure sample, and the committed and trial state left in ``sc`` and ``st``), with
-    the state carried through the time loop in local scalars.
+# --- the carrier: the state in scalars through the history loop (PlanLawSpec.carrier) ------
 
-    Each step calls :func:`update` from the committed state, and a second time from the first
-    call's trial state unless the first one flags itself settled (OpenSees' two ``update()``
-    calls, :mod:`rrfrei.laws.plan._history`); committing is renaming the trial scalars, and
-    only the forces and tangent are stored per step.  ``sc`` and ``st`` are read on entry and
-    written on exit: where the state lives in arrays that may alias the outputs, LLVM must load
-    and store all 19 entries around every call (step entry and exit, commit: about a tenth of a
-    step).  The contract's "both the initial state on entry" is checked (ValueError otherwise):
-    the trial and committed state are then one set of scalars at each step's start.  ``time``
-    is not used (the law has no rate term), nor is ``use_time``.  A non-finite sample of
-    ``disp`` returns ``(NONFINITE_DISP, sample)`` before any step, as the generic driver does.
-    """
-    bad = first_nonfinite(disp)
-    if bad >= 0:
-        return NONFINITE_DISP, bad
+@njit(cache=True, inline="always")
+def carry_begin(p, sc, st):
+    """``plan_begin`` of the history loop (:mod:`rrfrei.laws.plan._history`): the stiffnesses and
+    coefficients of :func:`update`, and the state as 19 scalars (module docstring).
+
+    The loop carries one state: the contract's "sc and st both the initial state on entry" is
+    checked (ValueError otherwise), so the trial and committed state are one set of scalars at
+    each step's start; committing is renaming them.  Where the state lives in arrays that may
+    alias the outputs, LLVM must load and store all 19 entries around every call (step entry
+    and exit, commit: about a tenth of a step)."""
     for a in range(sc.shape[0]):
         if not _same(sc[a], st[a]):
             raise ValueError("bouc_wen plan driver: sc and st must both hold the initial state "
                              "on entry (the trial state equal to the committed one)")
     k_init = p[0]
-    k0 = (1.0 - p[2]) * k_init
-    k2 = p[2] * k_init
-    k3 = p[3] * k_init
-    qd = p[1]
-    mu = p[4]
-    eta = p[5]
-    beta = p[6]
-    gamma = p[7]
-    uc0 = st[0]
-    uc1 = st[1]
-    zc0 = st[2]
-    zc1 = st[3]
-    qc0 = st[4]
-    qc1 = st[5]
-    ec00 = st[6]
-    ec01 = st[7]
-    ec10 = st[8]
-    ec11 = st[9]
-    sdc = st[SETTLED]
-    pvc = st[POW]
-    pzc0 = st[POW + 1]
-    pzc1 = st[POW + 2]
-    petac = st[POW + 3]
-    ppw2c = st[POW + 4]
-    ppw4c = st[POW + 5]
-    pc0c = st[POW + 6]
-    pc1c = st[POW + 7]
-    up0 = 0.0
-    up1 = 0.0
-    for i in range(disp.shape[0]):
-        x0 = disp[i, 0]
-        x1 = disp[i, 1]
-        dp0 = (x0 - up0) / substeps
-        dp1 = (x1 - up1) / substeps
-        f0 = f1 = k00 = k01 = k10 = k11 = 0.0
-        for j in range(substeps):
-            u0 = x0
-            u1 = x1
-            if j != substeps - 1:
-                u0 = up0 + dp0 * (j + 1)
-                u1 = up1 + dp1 * (j + 1)
-            # OpenSees' two update() calls of the step (the second skipped when the first is
-            # settled), from the committed state
-            (status, sd, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4, pc0,
-             pc1, f0, f1, k00, k01, k10, k11) = update(
-                k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
-                zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, pvc, pzc0, pzc1, petac, ppw2c,
-                ppw4c, pc0c, pc1c, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2)
-            # f and k finite: x * 0 is 0 for every finite x, NaN for an infinity or NaN
-            bad = status == 0 and not (f0 * 0.0 + f1 * 0.0 + k00 * 0.0 + k01 * 0.0 + k10 * 0.0
-                                       + k11 * 0.0 == 0.0)
-            if status != 0 or bad:
-                _store_state(sc, uc0, uc1, zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, sdc, pvc,
-                             pzc0, pzc1, petac, ppw2c, ppw4c, pc0c, pc1c)
-                _store_state(st, u0, u1, z0, z1, q0, q1, e00, e01, e10, e11, sd, pv, pz0, pz1,
-                             peta, ppw2, ppw4, pc0, pc1)
-                return (status if status != 0 else -3), i
-            uc0 = u0  # commit
-            uc1 = u1
-            zc0 = z0
-            zc1 = z1
-            qc0 = q0
-            qc1 = q1
-            ec00 = e00
-            ec01 = e01
-            ec10 = e10
-            ec11 = e11
-            sdc = sd
-            pvc = pv
-            pzc0 = pz0
-            pzc1 = pz1
-            petac = peta
-            ppw2c = ppw2
-            ppw4c = ppw4
-            pc0c = pc0
-            pc1c = pc1
-        force[i, 0] = f0
-        force[i, 1] = f1
-        tangent[i, 0, 0] = k00
-        tangent[i, 0, 1] = k01
-        tangent[i, 1, 0] = k10
-        tangent[i, 1, 1] = k11
-        up0 = x0
-        up1 = x1
-    _store_state(sc, uc0, uc1, zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, sdc, pvc, pzc0, pzc1,
-                 petac, ppw2c, ppw4c, pc0c, pc1c)
-    _store_state(st, uc0, uc1, zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, sdc, pvc, pzc0, pzc1,
-                 petac, ppw2c, ppw4c, pc0c, pc1c)
-    return 0, -1
+    ctx = ((1.0 - p[2]) * k_init, p[2] * k_init, p[3] * k_init, p[1], p[4], p[5], p[6], p[7])
+    cs = (st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7], st[8], st[9], st[SETTLED],
+          st[POW], st[POW + 1], st[POW + 2], st[POW + 3], st[POW + 4], st[POW + 5], st[POW + 6],
+          st[POW + 7])
+    return ctx, cs
+
+
+@njit(cache=True, inline="always")
+def carry_update(p, ctx, cs, u0, u1, v0, v1, dt):
+    """``plan_update``: OpenSees' two ``update()`` calls of a static step from the committed
+    state (the second skipped when the first is settled), :func:`update` with ``calls = 2``;
+    velocity and time are not used (the law has no rate term)."""
+    k0, k2, k3, qd, mu, eta, beta, gamma = ctx
+    (uc0, uc1, zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, sdc, pvc, pzc0, pzc1, petac, ppw2c,
+     ppw4c, pc0c, pc1c) = cs
+    (status, sd, z0, z1, q0, q1, e00, e01, e10, e11, pv, pz0, pz1, peta, ppw2, ppw4, pc0,
+     pc1, f0, f1, k00, k01, k10, k11) = update(
+        k0, k2, k3, qd, mu, eta, beta, gamma, u0, u1, uc0, uc1, zc0, zc1,
+        zc0, zc1, qc0, qc1, ec00, ec01, ec10, ec11, pvc, pzc0, pzc1, petac, ppw2c,
+        ppw4c, pc0c, pc1c, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2)
+    ts = (u0, u1, z0, z1, q0, q1, e00, e01, e10, e11, sd, pv, pz0, pz1, peta, ppw2, ppw4, pc0,
+          pc1)
+    return status, ts, f0, f1, k00, k01, k10, k11
+
+
+@njit(cache=True, inline="always")
+def carry_commit(ctx, ts):
+    """``plan_commit``: the trial scalars become the committed ones."""
+    return ts
+
+
+@njit(cache=True, inline="always")
+def carry_end(sc, st, ctx, cs, ts):
+    """``plan_end``: the committed and trial scalars written to ``sc`` and ``st``."""
+    _store_tuple(sc, cs)
+    _store_tuple(st, ts)
+
+
+@njit(cache=True, inline="always")
+def _store_tuple(s, t):
+    """Write the 19 state scalars ``t`` (in state order) into ``s``."""
+    _store_state(s, t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], t[10], t[11],
+                 t[12], t[13], t[14], t[15], t[16], t[17], t[18])
 
 
 SPEC = register(
@@ -609,6 +553,6 @@ SPEC = register(
                     "Newton on its two components, per-component hardening.",
         static_calls=2,
         settled_index=SETTLED,
-        history=drive,
+        carrier=Carrier(carry_begin, carry_update, carry_commit, carry_end),
     )
 )

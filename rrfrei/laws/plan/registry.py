@@ -19,10 +19,11 @@ Every plan law provides a Numba step kernel (``PlanLawSpec.step``)::
 * returns a status, 0 = converged, < 0 = failure (:data:`rrfrei.laws.STATUS_MESSAGES`).
 
 A driver commits by copying ``st`` into ``sc`` once a step has converged.  Kernels that call a
-plan law (the history driver :mod:`rrfrei.laws.plan._history`, the plan building's Newmark
+plan law (the history loop :mod:`rrfrei.laws.plan._history`, the plan building's Newmark
 integrator) are templates instantiated per law (:mod:`rrfrei.laws.specialise`) with the slot
-``plan_step`` bound to ``PlanLawSpec.step``; a law may bring its own whole-history driver
-(``PlanLawSpec.history``, the same results bit for bit), which :func:`driver` then returns.
+``plan_step`` bound to ``PlanLawSpec.step``; in the history loop the step is carried by the
+adapter :mod:`rrfrei.laws.plan._arrays`, or by the law's own carrier (``PlanLawSpec.carrier``:
+its state in scalars, the same results bit for bit).
 """
 
 from __future__ import annotations
@@ -33,6 +34,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rrfrei.laws import registry as _laws
+
+
+@dataclass(frozen=True)
+class Carrier:
+    """A plan law's local solver as the history loop carries it: the jitted module-level
+    functions bound to the slots ``plan_begin``, ``plan_update``, ``plan_commit`` and
+    ``plan_end`` of :mod:`rrfrei.laws.plan._history` (contracts there)."""
+
+    begin: Callable
+    update: Callable
+    commit: Callable
+    end: Callable
 
 
 @dataclass(frozen=True)
@@ -55,11 +68,11 @@ class PlanLawSpec:
         provably return the same trial state, force and tangent (e.g. its last local iteration
         left z bit for bit unchanged), else 0.0; the history driver then skips that call.  -1:
         always call twice.
-    history : optional, the law's own whole-history driver (jitted, the contract of
-        :func:`rrfrei.laws.plan._history.drive`, with the same results as the generic driver
-        bound to ``step``, bit for bit), used by :func:`driver` in its place; ``None``: the
-        generic template.  A law writes one to carry its state through the time loop in local
-        scalars (``rrfrei.laws.plan.bouc_wen.drive``).
+    carrier : optional, the law's local solver in the form the history loop carries it
+        (:class:`Carrier`, the slots of :mod:`rrfrei.laws.plan._history`), with the same results
+        as the loop with ``step`` bit for bit; ``None``: the step carried by
+        :mod:`rrfrei.laws.plan._arrays`.  A law writes one to carry its state through the time
+        loop in local scalars (``rrfrei.laws.plan.bouc_wen``).
     """
 
     name: str
@@ -69,7 +82,7 @@ class PlanLawSpec:
     initial_state: np.ndarray = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
     static_calls: int = 1
     settled_index: int = -1
-    history: Callable | None = field(default=None, compare=False, repr=False)
+    carrier: Carrier | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.static_calls not in (1, 2):
@@ -170,31 +183,43 @@ compiled call, cheaper than a numpy check before it), and ``simulate_force`` rai
 of :func:`rrfrei.simulate.as_plan_history` that names the sample and component."""
 
 HISTORY = "rrfrei.laws.plan._history"
-"""The template of the plan laws' whole-history driver (:mod:`rrfrei.laws.plan._history`)."""
+"""The template of the plan laws' whole-history loop (:mod:`rrfrei.laws.plan._history`)."""
 
-_DRIVERS: dict[str, tuple[PlanLawSpec, Callable]] = {}
+ARRAYS = "rrfrei.laws.plan._arrays"
+"""The template that carries an array step kernel through the loop (:mod:`rrfrei.laws.plan._arrays`)."""
+
+_DRIVERS: dict[tuple[str, bool], tuple[PlanLawSpec, Callable]] = {}
 
 
 def driver(spec: PlanLawSpec) -> Callable:
-    """The law's whole-history driver (jitted): ``PlanLawSpec.history`` where the law has one,
-    else the instance of :data:`HISTORY` bound to its step (:func:`generic_driver`):
+    """The law's whole-history driver (jitted): the instance of :data:`HISTORY`, the one loop,
+    bound to the law's carrier (``PlanLawSpec.carrier``) where it has one, else to its step
+    carried by :data:`ARRAYS` (:func:`generic_driver`):
     ``drive(p, sc, st, disp, time, use_time, substeps, force, tangent) -> (status, index)``.
     """
-    if spec.history is not None:
-        return spec.history
-    return generic_driver(spec)
+    return _driver(spec, spec.carrier is None)
 
 
 def generic_driver(spec: PlanLawSpec) -> Callable:
-    """The instance of :data:`HISTORY` bound to the law's step (whatever ``spec.history``): the
-    reference a law's own driver must equal bit for bit."""
+    """The loop with the law's step carried by :data:`ARRAYS` (whatever ``spec.carrier``): the
+    reference a law's own carrier must equal bit for bit."""
+    return _driver(spec, True)
+
+
+def _driver(spec: PlanLawSpec, arrays: bool) -> Callable:
     from rrfrei.laws.specialise import instantiate
 
-    hit = _DRIVERS.get(spec.name)
+    hit = _DRIVERS.get((spec.name, arrays))
     if hit is not None and hit[0] is spec:
         return hit[1]
-    bindings = {"plan_step": spec.step, "plan_static_calls": spec.static_calls,
-                "plan_settled_index": spec.settled_index}
-    drive = instantiate(HISTORY, bindings, f"plan_{spec.name}").drive
-    _DRIVERS[spec.name] = (spec, drive)
+    key = f"plan_{spec.name}"
+    carrier = spec.carrier
+    if arrays:
+        adapter = instantiate(ARRAYS, {"plan_step": spec.step, "plan_static_calls": spec.static_calls,
+                                       "plan_settled_index": spec.settled_index}, key)
+        carrier = Carrier(adapter.begin, adapter.update, adapter.commit, adapter.end)
+    bindings = {"plan_begin": carrier.begin, "plan_update": carrier.update,
+                "plan_commit": carrier.commit, "plan_end": carrier.end}
+    drive = instantiate(HISTORY, bindings, key).drive
+    _DRIVERS[(spec.name, arrays)] = (spec, drive)
     return drive
