@@ -29,6 +29,15 @@ class UserError(Exception):
     pass
 
 
+def _add_search(p: argparse.ArgumentParser, max_evals: int = 6000,
+                max_evals_help: str = "CMA-ES evaluations of the objective per run (default 6000)") -> None:
+    """The CMA-ES options of ``fit``, ``cases`` and ``gap``: ``--seed``, ``--restarts``, ``--max-evals``."""
+    p.add_argument("--seed", type=int, default=0, help="seed of the CMA-ES starts (default 0)")
+    p.add_argument("--restarts", type=int, default=2,
+                   help="CMA-ES restarts from new random starts (default 2)")
+    p.add_argument("--max-evals", type=int, default=max_evals, metavar="N", help=max_evals_help)
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m rubber", description="PRF (Yeoh + Bergstrom-Boyce) model: "
                                 "fit, predict, cross-protocol study, material cards, gap diagnosis (MPa, s).",
@@ -40,11 +49,7 @@ def _parser() -> argparse.ArgumentParser:
     f.add_argument("--out", required=True, metavar="DIR",
                    help="output folder: params.json (the fit), fit.png (data and model)")
     f.add_argument("--bounds", default=None, help="'auto' or a JSON file {name: [lo, hi]}")
-    f.add_argument("--seed", type=int, default=0, help="seed of the CMA-ES starts (default 0)")
-    f.add_argument("--restarts", type=int, default=2,
-                   help="CMA-ES restarts from new random starts (default 2)")
-    f.add_argument("--max-evals", type=int, default=6000, metavar="N",
-                   help="CMA-ES evaluations of the objective per run (default 6000)")
+    _add_search(f)
     f.add_argument("--json", action="store_true", help="print the fit as JSON on stdout")
     f.add_argument("--time-budget", type=seconds_arg, default=DEFAULT_FIT_BUDGET, metavar="SECONDS|none",
                    help=f"wall-clock limit of the search [s] (default {DEFAULT_FIT_BUDGET:.0f}; 'none': no "
@@ -58,11 +63,7 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("p1", help="tests of protocol 1 (a CSV/.mat file)")
     c.add_argument("p2", help="tests of protocol 2 (a CSV/.mat file)")
     c.add_argument("--out", required=True, metavar="DIR", help="output folder (created if missing)")
-    c.add_argument("--seed", type=int, default=0, help="seed of the CMA-ES starts (default 0)")
-    c.add_argument("--restarts", type=int, default=2,
-                   help="CMA-ES restarts from new random starts (default 2)")
-    c.add_argument("--max-evals", type=int, default=6000, metavar="N",
-                   help="CMA-ES evaluations of the objective per run (default 6000)")
+    _add_search(c)
     k = sub.add_parser("cards", help="Marc/Abaqus cards, curves, equivalent linear", epilog=EXAMPLES["cards"])
     k.add_argument("--params", required=True, metavar="JSON", help="params.json of a fit")
     k.add_argument("--out", required=True, metavar="DIR", help="output folder for the cards and curves")
@@ -76,11 +77,8 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--effects", nargs="+", default=None, help="effects to try (default all)")
     g.add_argument("--bounds", default=None, help="'auto' or a JSON file {name: [lo, hi]}")
     g.add_argument("--start", default=None, help="params.json of a previous fit to start from")
-    g.add_argument("--seed", type=int, default=0, help="seed of the CMA-ES starts (default 0)")
-    g.add_argument("--restarts", type=int, default=2,
-                   help="CMA-ES restarts from new random starts (default 2)")
-    g.add_argument("--max-evals", type=int, default=3000, metavar="N",
-                   help="CMA-ES evaluations per run (default 3000; 0: least squares from --start only)")
+    _add_search(g, max_evals=3000, max_evals_help="CMA-ES evaluations per run (default 3000; 0: least "
+                                                  "squares from --start only)")
     g.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     return p
 

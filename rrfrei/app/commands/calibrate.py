@@ -8,7 +8,16 @@ import sys
 import warnings
 from pathlib import Path
 
-from rrfrei.budget import BudgetExceeded, TimeBudget, seconds_arg
+from rrfrei.app.commands.args import (
+    add_command,
+    add_json,
+    add_no_progress,
+    add_time_budget,
+    min_int,
+    nonneg_int,
+    paragraph,
+)
+from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.calibration import (
     PATH_TOLERANCE,
     BoundWarning,
@@ -73,58 +82,33 @@ def _likelihood_points(text: str) -> int | str:
     return value
 
 
-def _nonneg_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
-
-
-def _min_int(minimum: int):
-    """argparse type: an integer >= ``minimum`` (0 is never a silent "default")."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(
-                f"expected an integer >= {minimum}, got {value} (leave the option out for the default)")
-        return value
-
-    return parse
-
-
 def add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--noise", choices=("iid", "ar1"), default="iid",
                    help="residual model: independent Gaussian or AR(1) (default iid)")
-    p.add_argument("--seed", type=_nonneg_int, default=0, metavar="N", help="seed (default 0)")
-    p.add_argument("--walkers", type=_min_int(2), default=None, metavar="N",
+    p.add_argument("--seed", type=nonneg_int, default=0, metavar="N", help="seed (default 0)")
+    p.add_argument("--walkers", type=min_int(2), default=None, metavar="N",
                    help="ensemble size (default max(32, 4 x parameters))")
-    p.add_argument("--steps", type=_min_int(2), default=None, metavar="N",
+    p.add_argument("--steps", type=min_int(2), default=None, metavar="N",
                    help=f"MCMC steps (default: until the convergence rule holds: {CONVERGENCE_RULE})")
     p.add_argument("--priors", default=None, metavar="TOML",
                    help="prior overrides ([priors.NAME] kind, a, b)")
-    p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_json(p, "print the results as JSON on stdout")
+    add_no_progress(p)
+
+
+HELP = "calibrate a law's parameters on a shear test (posterior, checks, figures)"
+"""One-line help of the command in ``rrfrei --help``."""
+DESCRIPTION = paragraph("""
+Bayesian calibration of an isolator law on a cyclic shear test CSV (columns time_s, disp_mm,
+force_kN, or any unit-suffixed names; bundled tests by name: protocol1..protocol4, SYNTHETIC).
+Starts from a CMA-ES optimum and samples with emcee; checks the fit and held-out tests.
+""")
+"""Description of the command in its ``--help``."""
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "calibrate",
-        help="calibrate a law's parameters on a shear test (posterior, checks, figures)",
-        description=(
-            "Bayesian calibration of an isolator law on a cyclic shear test CSV (columns time_s, disp_mm, "
-            "force_kN, or any unit-suffixed names; bundled tests by name: protocol1..protocol4, SYNTHETIC). "
-            "Starts from a CMA-ES optimum and samples with emcee; checks the fit and held-out tests."
-        ),
-        epilog=EXAMPLE + "\n" + GEOMETRY_HELP + "\n",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    p = add_command(sub, "calibrate", help=HELP, description=DESCRIPTION,
+                    epilog=EXAMPLE + "\n" + GEOMETRY_HELP + "\n")
     p.add_argument("test", metavar="TEST.csv", help="test file (or a bundled test name)")
     p.add_argument("--law", required=True, help="law name (e.g. bouc_wen, or an augmented law bouc_wen+rate)")
     p.add_argument("--holdout", nargs="*", default=[], metavar="CSV", help="held-out test files to predict")
@@ -133,12 +117,12 @@ def register(sub) -> None:
     p.add_argument("--checkpoint", default=None, metavar="H5|none",
                    help=f"HDF5 chain checkpoint, resumed if present (default DIR/{CHECKPOINT_NAME}, "
                         "restarted if it belongs to another run; none: no checkpoint)")
-    p.add_argument("--max-steps", type=_min_int(2), default=MAX_STEPS, metavar="N",
+    p.add_argument("--max-steps", type=min_int(2), default=MAX_STEPS, metavar="N",
                    help=f"step cap of a run to convergence (default {MAX_STEPS})")
-    p.add_argument("--time-budget", type=seconds_arg, default=DEFAULT_TIME_BUDGET, metavar="SECONDS|none",
-                   help=f"wall-clock limit of the optimum search and sampling (default "
-                        f"{DEFAULT_TIME_BUDGET:.0f}); when reached, the chain so far is kept and "
-                        "written, and the same command continues it")
+    add_time_budget(p, DEFAULT_TIME_BUDGET,
+                    help=f"wall-clock limit of the optimum search and sampling (default "
+                         f"{DEFAULT_TIME_BUDGET:.0f}); when reached, the chain so far is kept and "
+                         "written, and the same command continues it")
     p.add_argument("--likelihood-points", type=_likelihood_points, default="auto", metavar="N|auto|all",
                    help=f"samples the likelihood uses (the law always runs along the whole record): "
                         f"auto = all up to {DENSE_POINTS}, else every k-th sample, at most "

@@ -8,6 +8,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from rrfrei.app.commands.args import add_command, paragraph
 from rrfrei.app.commands.calibrate import add_column_args, add_common, load
 from rrfrei.calibration import BoundWarning, ConvergenceWarning, calibrate, compare
 from rrfrei.calibration.compare import runnable_laws, too_few_laws
@@ -23,18 +24,18 @@ DIR/posterior_<law>.nc.
 """
 
 
+HELP = "compare laws on one test by PSIS-LOO, WAIC and leave-one-cycle-out"
+"""One-line help of the command in ``rrfrei --help``."""
+DESCRIPTION = paragraph("""
+Calibrate each law on the test and compare their expected log predictive densities (PSIS-LOO with
+Pareto-k diagnostics, WAIC, leave-one-cycle-out). A difference under 2 dse does not separate two
+laws.
+""")
+"""Description of the command in its ``--help``."""
+
+
 def register(sub) -> None:
-    p = sub.add_parser(
-        "compare",
-        help="compare laws on one test by PSIS-LOO, WAIC and leave-one-cycle-out",
-        description=(
-            "Calibrate each law on the test and compare their expected log predictive densities "
-            "(PSIS-LOO with Pareto-k diagnostics, WAIC, leave-one-cycle-out). A difference under 2 dse "
-            "does not separate two laws."
-        ),
-        epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    p = add_command(sub, "compare", help=HELP, description=DESCRIPTION, epilog=EXAMPLE)
     p.add_argument("test", metavar="TEST.csv", help="test file (or a bundled test name)")
     p.add_argument("--laws", default="all", help="comma-separated law names, or 'all' (default)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from rrfrei.app.commands.args import add_command, add_no_progress, nonneg_int, paragraph
 from rrfrei.app.demo import run_demo
 
 EXAMPLE = """\
@@ -14,37 +15,27 @@ Example:
 """
 
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
+HELP = "run the whole pipeline on the bundled data and write an HTML report"
+"""One-line help of the command in ``rrfrei --help``."""
+DESCRIPTION = paragraph("""
+Calibrate four isolator laws on the bundled SYNTHETIC RR-FREI test (protocol 1), compare them,
+validate the best on protocols 2-4, diagnose the sim-to-real gap, propagate the posterior through
+the bundled records on the 5-story example building, fit the polyurethane model, and write
+DIR/index.html (self-contained), DIR/tables/*.csv and DIR/manifest.json. A step that fails is shown
+in its section; the exit status is then 1.
+""")
+"""Description of the command in its ``--help``."""
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "demo",
-        help="run the whole pipeline on the bundled data and write an HTML report",
-        description=(
-            "Calibrate four isolator laws on the bundled SYNTHETIC RR-FREI test (protocol 1), compare "
-            "them, validate the best on protocols 2-4, diagnose the sim-to-real gap, propagate the "
-            "posterior through the bundled records on the 5-story example building, fit the "
-            "polyurethane model, and write DIR/index.html (self-contained), DIR/tables/*.csv and "
-            "DIR/manifest.json. A step that fails is shown in its section; the exit status is then 1."
-        ),
-        epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    p = add_command(sub, "demo", help=HELP, description=DESCRIPTION, epilog=EXAMPLE)
     p.add_argument("--out", default="rrfrei-report", metavar="DIR",
                    help="output folder (default: rrfrei-report)")
     p.add_argument("--quick", action="store_true",
                    help="two of the four laws, four gap effects, short chains, few samples, records "
                         "and stripes (goal: 90 s on a first run, compilation included)")
-    p.add_argument("--seed", type=_seed, default=0, metavar="N", help="seed of every stochastic step")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument("--seed", type=nonneg_int, default=0, metavar="N", help="seed of every stochastic step")
+    add_no_progress(p)
     p.set_defaults(func=run)
 
 

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
 import ground_motions
+from rrfrei.app.commands.args import add_command, add_report_options
 from rrfrei.app.commands.calibrate import add_column_args, load
-from rrfrei.budget import BudgetExceeded, TimeBudget, seconds_arg
+from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.errors import NUMERICAL_ERRORS
 from rrfrei.gap import diagnose_gap
 from rrfrei.gap.catalogue import catalogue
@@ -53,16 +53,19 @@ DEFAULT_BUDGET = 600.0
 """Default wall-clock budget of ``rrfrei gap`` [s]."""
 
 
+HELP = "diagnose the sim-to-real gap of a calibrated law (which unmodelled effect)"
+"""One-line help of the command in ``rrfrei --help``."""
+
+
 def register(sub) -> None:
-    p = sub.add_parser(
-        "gap", help="diagnose the sim-to-real gap of a calibrated law (which unmodelled effect)",
-        description=(
-            "Calibrate LAW on TEST, find where its residuals exceed the noise, refit the law with "
-            f"each catalogue effect ({', '.join(catalogue())}), decide "
-            "on block tests over half-cycles (calibration and held-out) and a block bootstrap of the "
-            "held-out systematic gap, give a verdict (an effect, none, unexplained, incomplete) with "
-            "its evidence, and write a Markdown report with figures to DIR."),
-        epilog=EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    description = (
+        "Calibrate LAW on TEST, find where its residuals exceed the noise, refit the law with "
+        f"each catalogue effect ({', '.join(catalogue())}), decide "
+        "on block tests over half-cycles (calibration and held-out) and a block bootstrap of the "
+        "held-out systematic gap, give a verdict (an effect, none, unexplained, incomplete) with "
+        "its evidence, and write a Markdown report with figures to DIR."
+    )
+    p = add_command(sub, "gap", help=HELP, description=description, epilog=EXAMPLE)
     p.add_argument("test", help="calibration test CSV (or a bundled name: protocol1..protocol4)")
     p.add_argument("--law", default="bouc_wen", help="base law (default: bouc_wen)")
     p.add_argument("--holdout", nargs="*", default=[], metavar="CSV", help="held-out tests")
@@ -78,13 +81,11 @@ def register(sub) -> None:
     p.add_argument("--building-records", type=int, default=11, metavar="N",
                    help="bundled records (first N of the eleven) for the building consequences of the "
                         "named effect at lower/nominal/upper bound (default 11; 0: no building section)")
-    p.add_argument("--out", default="gap-report", metavar="DIR", help="output folder")
-    p.add_argument("--seed", type=int, default=0, help="seed of fits and draws (default 0)")
-    p.add_argument("--json", action="store_true", help="print the JSON summary on stdout")
-    p.add_argument("--time-budget", type=seconds_arg, default=DEFAULT_BUDGET, metavar="SECONDS|none",
-                   help=f"wall-clock limit (default {DEFAULT_BUDGET:.0f} s): when reached, report the "
-                        "effects evaluated so far and list the others as not evaluated; 'none': no limit")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    add_report_options(p, out="gap-report", budget=DEFAULT_BUDGET,
+                       budget_help=f"wall-clock limit (default {DEFAULT_BUDGET:.0f} s): when reached, report "
+                                   "the effects evaluated so far and list the others as not evaluated; "
+                                   "'none': no limit",
+                       progress_help="no progress bar on stderr")
     add_column_args(p)
     p.set_defaults(func=run)
 

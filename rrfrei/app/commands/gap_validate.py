@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
+from rrfrei.app.commands.args import add_command, add_no_progress, add_time_budget, paragraph, positive_int
 from rrfrei.budget import seconds_arg
 from rrfrei.gap.validation import CONTROLS, FULL, Settings, cases, run_table
 from rrfrei.gap.validation.report import percent, write
@@ -25,33 +25,22 @@ Exit status 0 when the report was written, also when goals were missed (the repo
 """
 
 
-def _positive(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return v
+HELP = "validate the gap diagnosis on synthetic tests with withheld effects"
+"""One-line help of the command in ``rrfrei --help``."""
+DESCRIPTION = paragraph("""
+For every catalogue effect, three generator forms that are not the catalogue's kernels, and four
+no-effect controls (Gaussian, heavy-tailed and AR(1) noise), make protocols 1-4 from a base law
+(plasticity or bouc_wen, alternating with the seed) plus that effect plus noise, calibrate on
+protocol 1 with the effect withheld, hold out 2-4, diagnose, and report the confusion matrix, miss
+rates per effect and per form, false alarms and held-out shrink against issue 12's goals.
+""")
+"""Description of the command in its ``--help``."""
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "gap-validate",
-        help="validate the gap diagnosis on synthetic tests with withheld effects",
-        description=(
-            "For every catalogue effect, three generator forms that are not the catalogue's kernels, "
-            "and four no-effect controls (Gaussian, heavy-tailed and AR(1) noise), make protocols 1-4 "
-            "from a base law (plasticity or bouc_wen, alternating with the seed) plus that effect plus "
-            "noise, calibrate on protocol 1 with the effect withheld, hold out 2-4, diagnose, and "
-            "report the confusion matrix, miss rates per effect and per form, false alarms and "
-            "held-out shrink against issue 12's goals."
-        ),
-        epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    p = add_command(sub, "gap-validate", help=HELP, description=DESCRIPTION, epilog=EXAMPLE)
     p.add_argument(
-        "--seeds", type=_positive, default=1, help="seeds per (effect, form) and control (default 1)"
+        "--seeds", type=positive_int, default=1, help="seeds per (effect, form) and control (default 1)"
     )
     p.add_argument(
         "--out",
@@ -74,12 +63,10 @@ def register(sub) -> None:
         help="one generator form per effect and seed (rotating with the seed) instead of all "
         f"three: a third of the cases (settings as the table's: {FULL.rate:g} Hz, {FULL.draws} draws)",
     )
-    p.add_argument("--workers", type=_positive, default=2, help="processes (default 2)")
-    p.add_argument(
-        "--time-budget",
-        type=seconds_arg,
-        default=None,
-        metavar="SECONDS|none",
+    p.add_argument("--workers", type=positive_int, default=2, help="processes (default 2)")
+    add_time_budget(
+        p,
+        None,
         help="wall-clock limit of the whole table (default none): cases not started in "
         "time are reported as not run, and a rerun resumes",
     )
@@ -91,7 +78,7 @@ def register(sub) -> None:
         help=f"wall-clock limit of one diagnosis (default {FULL.case_budget:.0f} s): "
         "a diagnosis cut short is 'incomplete'",
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    add_no_progress(p, "no progress bar on stderr")
     p.set_defaults(func=run)
 
 

@@ -7,6 +7,7 @@ import inspect
 import json
 import sys
 
+from rrfrei.app.commands.args import add_command, add_json, paragraph
 from rrfrei.calibration.likelihood import batch_kernels
 from rrfrei.laws import get, specialise
 from structures.history import kernel as building_kernel
@@ -18,22 +19,21 @@ Example:
 """
 
 
+HELP = "list the generated kernel files of a law (the code a command compiles)"
+"""One-line help of the command in ``rrfrei --help``."""
+DESCRIPTION = paragraph("""
+Generate (if needed) and list the kernel files bound to LAW: the whole-history drivers of simulate
+and calibrate, the batched likelihood of calibrate and the building's Newmark kernel of the time
+histories, plus any other instance of the law in the kernel cache (plan forms). Each file is
+verified against the hash in its name; the files live in the private per-user kernel cache.
+""")
+"""Description of the command in its ``--help``."""
+
+
 def register(sub) -> None:
-    p = sub.add_parser(
-        "kernels",
-        help="list the generated kernel files of a law (the code a command compiles)",
-        description=(
-            "Generate (if needed) and list the kernel files bound to LAW: the whole-history "
-            "drivers of simulate and calibrate, the batched likelihood of calibrate and the "
-            "building's Newmark kernel of the time histories, plus any other instance of the law "
-            "in the kernel cache (plan forms). Each file is verified against the hash in its "
-            "name; the files live in the private per-user kernel cache."
-        ),
-        epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    p = add_command(sub, "kernels", help=HELP, description=DESCRIPTION, epilog=EXAMPLE)
     p.add_argument("law", metavar="LAW", help="law name, e.g. plasticity or bouc_wen+rate")
-    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    add_json(p, "print JSON instead of a table")
     p.set_defaults(func=run)
 
 

@@ -13,6 +13,7 @@ import pandas as pd
 
 import ground_motions
 from ground_motions.asce7 import SuiteSizeWarning
+from rrfrei.app.commands.args import add_command, add_json, add_no_progress, int_arg, paragraph
 from structures.inputs import resolve_building, resolve_records
 from structures.plan_design import (
     TorsionAmplification,
@@ -52,29 +53,6 @@ and their percentiles) and DIR/orbit_<pair>.png (isolator y vs x with the design
 circle).  With --asce7 the pairs are first scaled per ASCE 7-22 17.3.3 (DIR/asce7_scaling.csv,
 .txt, .png).  Stores: DIR/store-plan/<bound>.
 """
-
-
-def _positive_int(name: str):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a positive integer, got {text!r}") from None
-        if value < 1:
-            raise argparse.ArgumentTypeError(f"{name} must be a positive integer, got {text!r}")
-        return value
-
-    return parse
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {text!r}")
-    return value
 
 
 def _scales(text: str) -> tuple[float, ...]:
@@ -123,35 +101,36 @@ def _asce7(text: str) -> tuple[float, ...]:
     return vals
 
 
+HELP = "run posterior draws of an isolator law through a building under ground motions"
+"""One-line help of the command in ``rrfrei --help``."""
+DESCRIPTION = paragraph("""
+Draw --samples full parameter sets from a calibrated posterior, run each on the building under every
+record at every scale (Numba, all cores; or a Dask cluster with --scheduler), and summarise the
+demands: percentiles, the share of variance due to the isolator parameters vs. the records,
+exceedance probabilities and lognormal fragility curves.
+""")
+"""Description of the command in its ``--help``."""
+
+
 def register(sub) -> None:
-    p = sub.add_parser(
-        "propagate",
-        help="run posterior draws of an isolator law through a building under ground motions",
-        description=(
-            "Draw --samples full parameter sets from a calibrated posterior, run each on the building "
-            "under every record at every scale (Numba, all cores; or a Dask cluster with --scheduler), "
-            "and summarise the demands: percentiles, the share of variance due to the isolator "
-            "parameters vs. the records, exceedance probabilities and lognormal fragility curves."
-        ),
-        epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    p = add_command(sub, "propagate", help=HELP, description=DESCRIPTION, epilog=EXAMPLE)
     p.add_argument("--posterior", required=True, metavar="FILE",
                    help="posterior.nc written by `rrfrei calibrate`")
     p.add_argument("--building", required=True, metavar="B",
                    help="building TOML file or example name (three_story, five_story)")
     p.add_argument("--records", required=True, metavar="R1,R2,...",
                    help="bundled record names or file paths, comma-separated; 'all' for every bundled record")
-    p.add_argument("--samples", type=_positive_int("samples"), default=200, metavar="N",
-                   help="posterior draws (default 200)")
+    p.add_argument("--samples", type=int_arg(1, "a positive integer", name="samples"), default=200,
+                   metavar="N", help="posterior draws (default 200)")
     p.add_argument("--scales", type=_scales, default=(1.0,), metavar="S1,S2,...",
                    help="intensity multipliers (default 1); two or more give fragility curves")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="Dask scheduler address (tcp://host:8786); default: all local cores")
-    p.add_argument("--seed", type=_seed, default=0, metavar="N", help="seed of the posterior draws")
-    p.add_argument("--chunk-size", type=_positive_int("chunk-size"), default=50, metavar="N",
-                   help="draws per chunk (default 50)")
+    p.add_argument("--seed", type=int_arg(0, "a non-negative integer", name="seed"), default=0,
+                   metavar="N", help="seed of the posterior draws")
+    p.add_argument("--chunk-size", type=int_arg(1, "a positive integer", name="chunk-size"), default=50,
+                   metavar="N", help="draws per chunk (default 50)")
     p.add_argument("--bidirectional", action="store_true",
                    help="records are pairs of horizontal components (bundled pair names or A.AT2+B.AT2), "
                         "run together on the plan building; adds the ASCE 7-22 Chapter 17 answers and "
@@ -167,8 +146,8 @@ def register(sub) -> None:
                    help="with --bidirectional: first scale the pairs per ASCE 7-22 17.3.3 (one factor per "
                         "pair, suite-average RotD100 >= the MCE_R spectrum, 1.5 x the design spectrum, over "
                         "0.75 T_UPPER to 1.25 T_LOWER); --scales then multiply the scaled pairs")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON instead of a table")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_json(p, "print the summary as JSON instead of a table")
+    add_no_progress(p, "no progress bar")
     p.set_defaults(func=run)
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import warnings
@@ -10,7 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from rrfrei.app.commands import shake_table_meta
-from rrfrei.budget import seconds_arg
+from rrfrei.app.commands.args import add_command, add_report_options, paragraph, positive_int
 from rrfrei.laws import get
 from rrfrei.notes import Note
 from structures.shake_table import ConsistencyWarning
@@ -44,28 +43,21 @@ DEFAULT_BUDGET = 900.0
 (every effect fitted by output error); the margin is for a loaded machine."""
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
+HELP = "predict a base-isolated building on shake-table runs and diagnose the gap"
+"""One-line help of the command in ``rrfrei --help``."""
+DESCRIPTION = paragraph("""
+Calibrate the building by output error: the identified superstructure on the isolator law, driven by
+every run's measured table acceleration in chronological order (isolator state carried), its
+simulated isolator displacement, isolation-layer force and roof acceleration fitted to the measured
+ones (the loop fit of the isolation-system loops is the start and a comparison row); diagnose which
+isolator or system effect closes the gap to the held-out runs' simulated responses; report NRMSE,
+peak error, 95 % band coverage and width per run and channel, and where the gap lies.
+""")
+"""Description of the command in its ``--help``."""
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "shake-table", help="predict a base-isolated building on shake-table runs and diagnose the gap",
-        description=(
-            "Calibrate the building by output error: the identified superstructure on the isolator law, "
-            "driven by every run's measured table acceleration in chronological order (isolator state "
-            "carried), its simulated isolator displacement, isolation-layer force and roof acceleration "
-            "fitted to the measured ones (the loop fit of the isolation-system loops is the start and a "
-            "comparison row); diagnose which isolator or system effect closes the gap to the held-out "
-            "runs' simulated responses; report NRMSE, peak error, 95 % band coverage and width per run "
-            "and channel, and where the gap lies."),
-        epilog=EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = add_command(sub, "shake-table", help=HELP, description=DESCRIPTION, epilog=EXAMPLE)
     p.add_argument("runs", nargs="*", metavar="RUN",
                    help="runs in chronological order (default: the bundled CNP100 LAC100 ICA50 ICA100)")
     p.add_argument("--calibrate", nargs="+", default=None, metavar="RUN[,RUN]",
@@ -83,15 +75,12 @@ def register(sub) -> None:
     p.add_argument("--rate", type=float, default=25.0, metavar="HZ",
                    help="rate of the isolation tests the law is fitted on (default 25 Hz; the runs' rate "
                         "divided by an integer)")
-    p.add_argument("--draws", type=_positive_int, default=30, metavar="N",
+    p.add_argument("--draws", type=positive_int, default=30, metavar="N",
                    help="posterior draws of each building fit, each a simulation of the runs (default 30)")
-    p.add_argument("--out", default="shake-table-report", metavar="DIR", help="output folder")
-    p.add_argument("--seed", type=int, default=0, help="seed of fits and draws (default 0)")
-    p.add_argument("--json", action="store_true", help="print the JSON summary on stdout")
-    p.add_argument("--time-budget", type=seconds_arg, default=DEFAULT_BUDGET, metavar="SECONDS|none",
-                   help=f"wall-clock limit (default {DEFAULT_BUDGET:.0f} s): the diagnosis stops with the "
-                        "effects it has evaluated; 'none': no limit")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    add_report_options(p, out="shake-table-report", budget=DEFAULT_BUDGET,
+                       budget_help=f"wall-clock limit (default {DEFAULT_BUDGET:.0f} s): the diagnosis stops "
+                                   "with the effects it has evaluated; 'none': no limit",
+                       progress_help="no progress bars on stderr")
     shake_table_meta.add_arguments(p)
     p.set_defaults(func=run)
 
