@@ -40,6 +40,7 @@ for _var in PINNED:
 import argparse  # noqa: E402
 import contextlib  # noqa: E402
 import json  # noqa: E402
+import resource  # noqa: E402
 import statistics  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
@@ -69,6 +70,7 @@ __all__ = [
     "single_thread",
     "throughput",
     "threads",
+    "children_cpu",
     "user_env",
 ]
 
@@ -347,6 +349,12 @@ def throughput(side: Side, *, repeat: int, warmup: int = 1,
 
 def _cache_files(folder: Path) -> set[str]:
     return {str(p.relative_to(folder)) for p in folder.rglob("*") if p.suffix in (".nbi", ".nbc", ".py")}
+
+
+def children_cpu() -> float:
+    """User + system CPU seconds of every terminated child (and its waited-for descendants)."""
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
 
 
 def user_env() -> dict[str, str]:

@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -39,19 +38,14 @@ HEADER = ("| seed | wall [s] | CPU [s] | exit | stopped by | steps x walkers | m
           "| ESS min | converged |\n|---:|---:|---:|---:|---|---|---:|---:|---:|---|")
 
 
-def _children_cpu() -> float:
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
-
-
 def run_seed(seed: int) -> tuple[str, bool, float]:
     """One whole command; its table row, whether it converged and its wall time [s]."""
     out = Path(tempfile.mkdtemp(prefix=f"bench_conv_{seed}_"))
-    cpu0, t0 = _children_cpu(), time.perf_counter()
+    cpu0, t0 = tm.children_cpu(), time.perf_counter()
     run = subprocess.run([*CLI, str(SPC1), "--law", "bouc_wen", "--out", str(out), "--quiet",
                           "--seed", str(seed), *COLUMNS],
                          capture_output=True, text=True, cwd=HERE.parent, env=tm.user_env())
-    wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
+    wall, cpu = time.perf_counter() - t0, tm.children_cpu() - cpu0
     print(f"seed {seed}: {wall:.1f} s wall, {cpu:.1f} s CPU, exit {run.returncode}\n{run.stderr[-800:]}",
           flush=True)
     if run.returncode != 0 or not (out / "run.json").exists():

@@ -26,7 +26,6 @@ and import only (RESULTS.md unchanged).
 from __future__ import annotations
 
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -52,12 +51,6 @@ def clone(dest: Path) -> str:
     return sha[:10]
 
 
-def _children_cpu() -> float:
-    """User + system CPU seconds of every terminated child (and its waited-for descendants)."""
-    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return ru.ru_utime + ru.ru_stime
-
-
 def timed(label: str, argv: list[str], cwd: Path, cache: Path) -> tuple[str, float, float, int, float]:
     """Run ``argv`` in ``cwd`` (a fresh process, the clone first on the path, the kernel cache in
     ``cache``): ``(label, wall [s], CPU [s], exit status, load average before)``."""
@@ -67,11 +60,11 @@ def timed(label: str, argv: list[str], cwd: Path, cache: Path) -> tuple[str, flo
     env["XDG_CACHE_HOME"] = str(cache / "xdg")  # the per-user cache folder, empty too
     env["MPLBACKEND"] = "Agg"
     load = os.getloadavg()[0]
-    c0 = _children_cpu()
+    c0 = tm.children_cpu()
     t0 = time.perf_counter()
     run = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
-    cpu = _children_cpu() - c0
+    cpu = tm.children_cpu() - c0
     print(f"{label}: {wall:.1f} s wall, {cpu:.1f} s CPU, exit {run.returncode}", run.stdout[-800:],
           run.stderr[-1500:], sep="\n", flush=True)
     return label, wall, cpu, run.returncode, load
