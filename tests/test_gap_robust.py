@@ -17,7 +17,7 @@ from rrfrei.app.cli import main
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.errors import NumericalFailure
 from rrfrei.gap.diagnose import diagnose
-from rrfrei.gap.fitting import _laplace_cov
+from rrfrei.gap.fitting import laplace_cov
 from rrfrei.gap.isolator import IsolatorFit, IsolatorModel
 from rrfrei.gap.model import FitResult, GapModel, Prediction
 from rrfrei.gap.report import write_report
@@ -262,10 +262,10 @@ def test_a_simulation_that_raises_inside_the_least_squares_search_is_a_bad_point
     assert fit.params["qd"] == pytest.approx(0.6, rel=0.1)
 
 
-def test_a_laplace_covariance_from_a_non_finite_jacobian_is_a_numerical_failure_naming_where():
+def test_alaplace_covariance_from_a_non_finite_jacobian_is_a_numerical_failure_naming_where():
     J = np.array([[1.0, np.nan], [0.0, 1.0]])
     with pytest.raises(NumericalFailure, match="Laplace covariance of law 'x' on test 'y'"):
-        _laplace_cov(J, 1.0, 2, "law 'x' on test 'y'")
+        laplace_cov(J, 1.0, 2, "law 'x' on test 'y'")
 
 
 def test_a_laplace_precision_singular_in_floating_point_is_inverted_with_the_ridge_and_says_so():
@@ -274,10 +274,10 @@ def test_a_laplace_precision_singular_in_floating_point_is_inverted_with_the_rid
     J = np.full((4, 2), 1e10)
     with pytest.raises(np.linalg.LinAlgError):
         np.linalg.inv(J.T @ J + np.eye(2))
-    cov, note = _laplace_cov(J, 1.0, 2, "law 'x' on test 'y'")
+    cov, note = laplace_cov(J, 1.0, 2, "law 'x' on test 'y'")
     assert np.all(np.isfinite(cov)) and np.all(np.linalg.eigvalsh(cov) <= 1.0 + 1e-12)
     assert "singular in floating point" in note and "law 'x' on test 'y'" in note
-    assert _laplace_cov(np.eye(2), 1.0, 2, "w") == (pytest.approx(np.eye(2) / 2), "")
+    assert laplace_cov(np.eye(2), 1.0, 2, "w") == (pytest.approx(np.eye(2) / 2), "")
 
 
 def test_an_isolator_fit_saved_for_a_checkpoint_restores_to_the_same_predictions():

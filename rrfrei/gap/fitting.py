@@ -1,6 +1,7 @@
 """The numerics of a gap model's least-squares fit: the guard that ends a creeping or screened
 start (:class:`_Guard`), the rule that keeps a screened start (:func:`_worth_continuing`), and the
-Laplace covariance at the optimum (:func:`_laplace_cov`)."""
+Laplace covariance at the optimum (:func:`laplace_cov`) and its square-root factor
+(:func:`laplace_factor`), shared by every gap model (isolator, building, rubber)."""
 
 from __future__ import annotations
 
@@ -65,7 +66,7 @@ def _worth_continuing(costs: Sequence[float], lead: float) -> bool:
     return c - 20.0 * max(back - c, 0.0) < lead
 
 
-def _laplace_cov(J: np.ndarray, s2: float, k: int, where: str) -> tuple[np.ndarray, str]:
+def laplace_cov(J: np.ndarray, s2: float, k: int, where: str) -> tuple[np.ndarray, str]:
     """``(J^T J / s2 + I)^-1`` in scaled coordinates, and a note ("" unless regularised).
 
     When the precision is singular in floating point (collinear Jacobian columns of size > 1e8,
@@ -92,3 +93,15 @@ def _laplace_cov(J: np.ndarray, s2: float, k: int, where: str) -> tuple[np.ndarr
     cov = (V / np.maximum(w, 1.0)) @ V.T
     return cov, (f"Laplace precision of {where} singular in floating point: inverted with its "
                  "eigenvalues clipped at the ridge (1)")
+
+
+def laplace_factor(cov: np.ndarray) -> np.ndarray:
+    """A factor ``L`` with ``L @ L.T == cov``: the Cholesky factor, or, when rounding makes ``cov``
+    lose positive definiteness, ``V sqrt(max(w, 0))`` from its eigen-decomposition.  Draws from the
+    Laplace approximation are ``x_opt + L @ u`` with ``u`` standard normal."""
+    cov = np.asarray(cov, dtype=float)
+    try:
+        return np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+        return V * np.sqrt(np.clip(w, 0.0, None))

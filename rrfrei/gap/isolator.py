@@ -33,7 +33,7 @@ from scipy.optimize import least_squares
 from rrfrei.budget import TimeBudget
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap.catalogue import Scales, catalogue
-from rrfrei.gap.fitting import _Guard, _laplace_cov, _worth_continuing
+from rrfrei.gap.fitting import _Guard, _worth_continuing, laplace_cov
 from rrfrei.gap.model import (
     LEVEL,
     MIN_BAND_SAMPLES,
@@ -516,7 +516,7 @@ class IsolatorModel(GapModel):
         if not rss > 0.0 or not math.isfinite(rss):
             raise NumericalFailure(f"Laplace posterior of {where}: residual sum of squares at the "
                                    f"optimum is {rss!r} (expected finite > 0)")
-        cov, note = _laplace_cov(best.jac, rss / max(n - k, 1), k, where)
+        cov, note = laplace_cov(best.jac, rss / max(n - k, 1), k, where)
         # common random numbers: parameter j of the spec always gets the same normal column, so
         # nested laws (base vs base+effect) are compared with little Monte Carlo noise
         S = self.draws

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import norm as _norm
 
+from rrfrei.errors import NumericalFailure
+from rrfrei.gap.fitting import laplace_cov, laplace_factor
 from rrfrei.gap.model import LEVEL, FitResult, GapModel, Prediction, white_noise
 from rubber import integrate as _k
 from rubber.fit import (
@@ -269,9 +271,10 @@ class RubberModel(GapModel):
         """:data:`DRAWS` parameter sets from the Laplace approximation at the optimum ``z`` (unit
         coordinates) corrected by importance sampling, and the importance effective sample size.
 
-        Proposal: covariance (J^T J / s^2 + I)^-1, J by forward differences (step 1e-6, taken inward
-        at a bound), s^2 = rss / (n - k); draws outside the box are clipped to it, draws the PRF
-        model rejects are redrawn (at most 20 DRAWS tries).  Each draw is weighted by the exact
+        Proposal: covariance (J^T J / s^2 + I)^-1 (:func:`rrfrei.gap.fitting.laplace_cov`, drawn
+        through :func:`~rrfrei.gap.fitting.laplace_factor`), J by forward differences (step 1e-6,
+        taken inward at a bound), s^2 = rss / (n - k); draws outside the box are clipped to it,
+        draws the PRF model rejects are redrawn (at most 20 DRAWS tries).  Each draw is weighted by the exact
         Gaussian likelihood exp(-rss(z) / 2 s^2) over the proposal density, and DRAWS equally
         weighted draws are resampled (systematic resampling).  The PRF model is far from linear in
         its parameters: an ESS of a few draws says that the posterior is much narrower than the
@@ -286,11 +289,13 @@ class RubberModel(GapModel):
             zj[j] += h
             J[:, j] = (resid(zj) - r0) / h
         s2 = rss / max(n - k, 1)
-        if not (np.all(np.isfinite(J)) and s2 > 0.0):
+        if not s2 > 0.0:
             return (), float("nan")
-        A = J.T @ J / s2 + np.eye(k)
-        w, V = np.linalg.eigh(0.5 * (A + A.T))
-        L = V / np.sqrt(np.maximum(w, 1.0))  # cov = L L^T (eigenvalues clipped at the ridge)
+        try:
+            cov, _ = laplace_cov(J, s2, k, f"rubber model {self.name!r}")
+        except NumericalFailure:  # a non-finite Jacobian: no draws, the band rests on sigma
+            return (), float("nan")
+        L = laplace_factor(cov)
         rng = np.random.default_rng([int(seed), 0x52554242])
         zs, log_w = [], []
         for _ in range(20 * DRAWS):
