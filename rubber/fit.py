@@ -502,7 +502,8 @@ def fisher_information(params: PRFParams, tests: list[Test], free: tuple[str, ..
 def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, seed: int = 0,
         restarts: int = 2, max_evals: int = 6000, popsize: int = 16, sigma0: float = 0.3,
         x0: PRFParams | None = None, polish: bool = True, tau: str = "frobenius", rtol: float = 1e-6,
-        pool=None, time_budget: float | None = None, progress: bool = False) -> FitResult:
+        pool=None, time_budget: float | None = None, progress: bool = False,
+        polish_evals: int | None = None) -> FitResult:
     """Fit a :class:`PRFParams` to uniaxial tests by CMA-ES with restarts and a least-squares polish.
 
     Parameters
@@ -521,6 +522,9 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
         reached, the best point so far is kept, the post-fit uncertainty step still runs, and the
         result says ``stopped_by="time_budget"``.
     progress : tqdm bar over the CMA-ES evaluations (serial restarts) and the polish, on stderr.
+    polish_evals : cap on the evaluations of the least-squares polish, finite-difference Jacobians
+        included (default None: the polish stops by its tolerances or after ``60 (1 + free)``
+        iterations, ``free`` the number of searched parameters).
 
     Returns
     -------
@@ -539,6 +543,8 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
         raise ValueError("fixed: 'xi' must be fixed (it is not identifiable)")
     if int(restarts) < 1:
         raise ValueError(f"restarts = {restarts!r}: expected >= 1")
+    if polish_evals is not None and int(polish_evals) < 1:
+        raise ValueError(f"polish_evals = {polish_evals!r}: expected >= 1 (or None for the default)")
     b = _resolve_bounds(bounds, tests)
     free = tuple(n for n in PARAM_NAMES if n not in fixed)
     space = _Space(free, b, fixed, tau)
@@ -563,6 +569,7 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
     nev = sum(r[2] for r in runs)
     xb, fb, _ = min(runs, key=lambda r: r[1])
     if polish and not budget.expired():
+        cap = math.inf if polish_evals is None else int(polish_evals)
         r0 = _residuals(space, tests, xb, tau, rtol)
         with _progress(None, "polish (least squares)", enabled=progress, unit="eval") as bar:
             def resid(x):
@@ -570,8 +577,9 @@ def fit(tests: list[Test] | Test, *, fixed: dict | None = None, bounds=None, see
                 return _residuals(space, tests, x, tau, rtol)
 
             xb, _, n = least_squares_best(resid, xb, start_cost=float(r0 @ r0),
-                                          stop=lambda _n: budget.expired(), x_scale=1.0, diff_step=1e-6,
-                                          max_nfev=60 * (1 + len(free)), xtol=1e-14, ftol=1e-14, gtol=1e-14)
+                                          stop=lambda n: n >= cap or budget.expired(), x_scale=1.0,
+                                          diff_step=1e-6, max_nfev=60 * (1 + len(free)),
+                                          xtol=1e-14, ftol=1e-14, gtol=1e-14)
         nev += n
     stopped = "time_budget" if budget.expired() else None
     p = space.params(xb)

@@ -253,3 +253,17 @@ def test_twelve_test_multirate_fit_recovers_the_identifiable_combinations(tmp_pa
     truth = combinations(ACRYLIC, rate=doc["ref_rate"])
     for n, v in truth.items():  # moduli, flow thresholds at r_ref, equilibrium stresses
         assert doc["combinations"][n] == pytest.approx(v, rel=0.05), n
+
+
+# --- the polish has an evaluation cap (Jacobians included) --------------------------------------
+def test_the_polish_stops_at_its_evaluation_cap_jacobians_included(acrylic):
+    bare = fit(acrylic[:1], bounds="auto", restarts=1, max_evals=32, polish=False)
+    capped = fit(acrylic[:1], bounds="auto", restarts=1, max_evals=32, polish_evals=25)
+    # the same CMA-ES run (same seed), then at most 25 polish evaluations; the polish keeps the best
+    assert 0 < capped.evaluations - bare.evaluations <= 25
+    assert capped.f_total <= bare.f_total
+
+
+def test_a_polish_cap_below_one_is_refused_naming_the_option(acrylic):
+    with pytest.raises(ValueError, match="polish_evals = 0"):
+        fit(acrylic[:1], bounds="auto", restarts=1, max_evals=32, polish_evals=0)
