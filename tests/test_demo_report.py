@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import json
+import os
 import re
 
 import numpy as np
@@ -143,6 +144,36 @@ def test_a_failing_step_is_shown_in_its_section_and_the_later_steps_still_run(tm
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     assert manifest["ok"] is False
     assert [s["status"] for s in manifest["sections"]] == list(status.values())
+
+
+def _whose(ctx, sec):
+    sec.add_table("t", pd.DataFrame({"x": [1.0]}))
+    sec.reading = f"pid {os.getpid()}"
+
+
+def _bug(ctx, sec):
+    raise TypeError("a bug, not a failure of the workflow")
+
+
+ASIDE = (demo.Step("first", "First", _ok), demo.Step("aside", "Aside", _whose, alone=True),
+         demo.Step("later", "Later", _later))
+
+
+def test_a_step_that_stands_alone_runs_in_a_second_process_and_keeps_its_place_on_the_page(tmp_path):
+    result = demo.run_demo(tmp_path / "p", quick=True, progress=False, steps=ASIDE, parallel=True)
+    assert [(s.key, s.status) for s in result.report.sections] == [
+        ("first", "ok"), ("aside", "ok"), ("later", "ok")]
+    aside = result.report.sections[1]
+    assert aside.reading.startswith("pid ") and aside.reading != f"pid {os.getpid()}"
+    assert "t" in aside.tables  # the section came back whole
+    serial = demo.run_demo(tmp_path / "s", quick=True, progress=False, steps=ASIDE, parallel=False)
+    assert serial.report.sections[1].reading == f"pid {os.getpid()}"
+
+
+def test_a_bug_in_a_step_run_aside_is_raised_not_written_into_the_page(tmp_path):
+    steps = (ASIDE[0], demo.Step("bug", "Bug", _bug, alone=True))
+    with pytest.raises(TypeError, match="a bug, not a failure"):
+        demo.run_demo(tmp_path, quick=True, progress=False, steps=steps, parallel=True)
 
 
 def test_rrfrei_demo_exits_nonzero_naming_the_failed_step(tmp_path, monkeypatch, capsys):

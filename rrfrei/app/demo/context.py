@@ -47,6 +47,7 @@ class DemoSettings:
     building: str = "five_story"
     rubber_evals: int = 800
     rubber_restarts: int = 1
+    rubber_polish_evals: int | None = None  # None: the polish stops by its tolerances
     predict_draws: int = 200
     # the real base-isolated building (BNCS shake-table runs): calibrate -> hold out
     shake_calibrate: tuple[str, ...] = ("CNP100", "LAC100", "ICA50")
@@ -78,6 +79,7 @@ class DemoSettings:
             stripe_samples=6,
             rubber_evals=300,
             rubber_restarts=1,
+            rubber_polish_evals=150,
             predict_draws=100,
             shake_calibrate=("ICA50",),
             shake_law="plasticity",
@@ -108,6 +110,13 @@ class DemoContext:
 
 @dataclass(frozen=True)
 class Step:
+    """One section of the page: ``func(ctx, section)`` fills it.
+
+    ``alone``: the step needs no earlier step's result and gives none to a later one, so it may
+    run in a second process beside the others (:func:`rrfrei.app.demo.run_demo`, ``parallel``).
+    """
+
     key: str
     title: str
     func: Callable[[DemoContext, Section], None]
+    alone: bool = False

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import os
+import pickle
 import time
 import traceback
 from collections.abc import Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -55,6 +58,27 @@ def run_step(step: Step, ctx: DemoContext) -> Section:
     return sec
 
 
+def _side_process() -> None:
+    """Initialiser of the second process: figures off-screen, one Numba thread (the main process
+    keeps the machine's threads for its batched kernels; two processes need not oversubscribe)."""
+    import matplotlib
+    import numba
+
+    matplotlib.use("Agg")
+    numba.set_num_threads(1)
+
+
+def _can_run_aside(step: Step) -> bool:
+    """An ``alone`` step whose function a second process can import (a module-level function)."""
+    if not step.alone:
+        return False
+    try:
+        pickle.dumps(step)
+    except (pickle.PicklingError, AttributeError, TypeError):
+        return False
+    return True
+
+
 def run_demo(
     out: str | Path = "rrfrei-report",
     *,
@@ -63,6 +87,7 @@ def run_demo(
     progress: bool = True,
     settings: DemoSettings | None = None,
     steps: Sequence[Step] | None = None,
+    parallel: bool | None = None,
 ) -> DemoResult:
     """Run every step and write the page ``out/index.html`` with its tables and manifest.
 
@@ -74,6 +99,10 @@ def run_demo(
     progress : show tqdm progress bars on the long steps.
     settings : explicit step sizes (overrides ``quick``/``seed``).
     steps : the steps to run (default :data:`rrfrei.app.demo.steps.STEPS`).
+    parallel : run the steps marked ``alone`` (they need no other step's result: the shake-table
+        building, the rubber fits) in a second process while this one runs the chain from
+        calibration to propagation; the page is the same, in the same order.  None (default):
+        when the machine has at least 2 cores.
 
     Returns
     -------
@@ -128,11 +157,29 @@ def run_demo(
     inner = progress and stderr_is_tty()
     ctx = DemoContext(settings=settings, progress=inner)
     t0 = time.perf_counter()
-    bar = _steps.tqdm_or_plain(steps, progress, desc="rrfrei demo", unit="step")
-    for step in bar:
-        if hasattr(bar, "set_postfix_str"):
-            bar.set_postfix_str(step.key)
-        report.add(run_step(step, ctx))
+    if parallel is None:
+        parallel = (os.cpu_count() or 1) >= 2
+    aside = [s for s in steps if _can_run_aside(s)] if parallel else []
+    pending: dict[str, Future] = {}
+    pool = None
+    if len(aside) and len(aside) < len(steps):
+        import multiprocessing
+
+        # spawn, not fork: the parent's Numba thread pool and BLAS threads do not survive a fork
+        pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_side_process)
+        side_ctx = DemoContext(settings=settings, progress=False)
+        pending = {s.key: pool.submit(run_step, s, side_ctx) for s in aside}
+    try:
+        bar = _steps.tqdm_or_plain(steps, progress, desc="rrfrei demo", unit="step")
+        for step in bar:
+            if hasattr(bar, "set_postfix_str"):
+                bar.set_postfix_str(step.key)
+            # a bug in a step run aside is raised here, as it would be in this process
+            report.add(pending[step.key].result() if step.key in pending else run_step(step, ctx))
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
     seconds = time.perf_counter() - t0
     report.meta["total time"] = f"{seconds:.0f} s"
     page = report.write(out)

@@ -416,7 +416,8 @@ def step_rubber(ctx: DemoContext, sec: Section) -> None:
     p1 = synthetic_test(truth, "p1", noise=noise, seed=s.seed)
     p2 = synthetic_test(truth, "p2", noise=noise, seed=s.seed + 1)
     vhb = load_vhb4910()
-    kw = {"seed": s.seed, "restarts": s.rubber_restarts, "max_evals": s.rubber_evals}
+    kw = {"seed": s.seed, "restarts": s.rubber_restarts, "max_evals": s.rubber_evals,
+          "polish_evals": s.rubber_polish_evals}
     jobs = {"both protocols": ([p1, p2], {}), "VHB 4910 (real)": ([vhb], {"bounds": "auto"})}
     if not s.quick:  # the cross-prediction study: each protocol alone too
         jobs = {"protocol 1": ([p1], {}), "protocol 2": ([p2], {}), **jobs}
@@ -479,6 +480,6 @@ STEPS: tuple[Step, ...] = (
     Step("gap", "Sim-to-real gap: where, which effect, how much it shrinks", step_gap),
     Step("propagation", "The best posterior on the 5-story example building", step_propagate),
     Step("shake_table", "A real base-isolated building: shake-table runs predicted and diagnosed",
-         step_shake_table),
-    Step("rubber", "Polyurethane (PRF) model fits", step_rubber),
+         step_shake_table, alone=True),
+    Step("rubber", "Polyurethane (PRF) model fits", step_rubber, alone=True),
 )
