@@ -66,3 +66,37 @@ def test_simulating_a_read_only_test_and_a_writable_history_share_one_signature(
     assert out.returncode == 0, out.stderr
     n_sigs, n_readonly = map(int, out.stdout.split())
     assert n_readonly == 0 and n_sigs >= 1
+
+
+_ONE_LOOP_FOR_EVERY_CALLER = """
+import numpy as np
+from rrfrei import simulate_force
+from rrfrei.calibration import setup_problem
+from rrfrei.gap.isolator import simulate_retry
+from rrfrei.io import load_test
+from rrfrei.laws import _bouc_wen_fast, get
+from rrfrei.laws.specialise import history
+
+spec = get("bouc_wen")
+test = load_test("protocol1")
+p = {"k_init": 1130.0, "qd": 3.1, "alpha1": 0.45, "alpha2": -0.7, "mu": 1.55, "eta": 1.37,
+     "beta": 0.5, "gamma": 0.35}
+prob = setup_problem(test, spec)                      # the calibration's batched kernel
+prob.forces(np.atleast_2d(spec.pack(p)))
+simulate_retry(spec, spec.pack(p), test)              # the gap engine, along the read-only test
+simulate_force("bouc_wen", p, np.array(test.disp))    # a user's own history
+print(len(history(spec).signatures), len(_bouc_wen_fast._fast_run.signatures))
+"""
+
+
+def test_the_calibration_the_gap_engine_and_a_user_compile_one_bouc_wen_loop():
+    """bouc_wen's fast loop costs about 15 s of CPU to compile: the calibration's batch (which
+    used to pass the literal 1 sub-step, a signature of its own), the gap engine (which passed a
+    test's read-only arrays) and ``simulate_force`` share one compiled loop.  Fresh interpreter."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _ONE_LOOP_FOR_EVERY_CALLER], capture_output=True,
+                         text=True, timeout=900)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["1", "1"]

@@ -23,7 +23,8 @@ def forces_batch(P, state0, disp, time, use_time, F, T, status):
     """Model force of every row of ``P`` along ``disp`` into ``F`` (rows), statuses into ``status``."""
     nw = P.shape[0]
     for w in prange(nw):
-        s, _ = law_drive(P[w], state0.copy(), state0.copy(), disp, time, use_time, 1, F[w], T[w])
+        # np.int64(1), not the literal 1: a literal argument compiles the law's loop a second time
+        s, _ = law_drive(P[w], state0.copy(), state0.copy(), disp, time, use_time, np.int64(1), F[w], T[w])
         status[w] = s
 
 
@@ -41,7 +42,7 @@ def loglik_batch(P, state0, disp, time, use_time, obs, idx, sigma, rho, ar1, F, 
         if not s > 0.0:
             out[w] = -np.inf
             continue
-        st, _ = law_drive(P[w], state0.copy(), state0.copy(), disp, time, use_time, 1, F[w], T[w])
+        st, _ = law_drive(P[w], state0.copy(), state0.copy(), disp, time, use_time, np.int64(1), F[w], T[w])
         if st != 0:
             out[w] = -np.inf
             continue

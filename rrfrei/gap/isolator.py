@@ -65,6 +65,7 @@ _UNIT_SCALES = Scales(force=1.0, disp=1.0, vel=1.0, energy=1.0)
 
 
 _HISTORIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_WRITABLE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 """test -> the concatenation of its ``preceding`` tests and itself (built once per test)."""
 
 
@@ -74,6 +75,15 @@ def _history_of(test: ShearTest) -> ShearTest:
         full = concat_tests([*test.preceding, test], name=test.name)
         _HISTORIES[test] = full
     return full
+
+
+def _writable(test: ShearTest) -> tuple[np.ndarray, np.ndarray]:
+    """Writable copies of ``test``'s (read-only) displacement and time, kept per test: Numba
+    compiles a read-only array as a second signature of the law's whole loop."""
+    w = _WRITABLE.get(test)
+    if w is None:
+        w = _WRITABLE[test] = (np.array(test.disp, dtype=float), np.array(test.time, dtype=float))
+    return w
 
 
 def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
@@ -94,14 +104,14 @@ def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
     sc = np.array(spec.initial_state, dtype=float)
     if not test.preceding:
         T = np.empty(n)
-        status, _ = history(spec)(p, sc, sc.copy(), test.disp, test.time, bool(test.has_time), substeps,
-                                  F, T)
+        disp, time = _writable(test)
+        status, _ = history(spec)(p, sc, sc.copy(), disp, time, bool(test.has_time), substeps, F, T)
         return int(status), F
     full = _history_of(test)
     Ff = np.empty(len(full))
     T = np.empty(len(full))
-    status, _ = history(spec)(p, sc, sc.copy(), full.disp, full.time, bool(full.has_time), substeps,
-                              Ff, T)
+    disp, time = _writable(full)
+    status, _ = history(spec)(p, sc, sc.copy(), disp, time, bool(full.has_time), substeps, Ff, T)
     F[:] = Ff[len(full) - n:]
     return int(status), F
 
