@@ -170,6 +170,25 @@ def test_a_step_that_stands_alone_runs_in_a_second_process_and_keeps_its_place_o
     assert serial.report.sections[1].reading == f"pid {os.getpid()}"
 
 
+def _chooses(ctx, sec):
+    ctx.tests["protocol9"] = "a test"
+    ctx.best_law = "plasticity"
+    sec.reading = "chose"
+
+
+def _reads(ctx, sec):
+    sec.reading = f"pid {os.getpid()}: {sorted(ctx.tests)} {ctx.best_law}"
+
+
+def test_a_step_run_aside_after_another_reads_the_tests_and_the_best_law_it_chose(tmp_path):
+    steps = (demo.Step("reads", "Reads", _reads, alone=True, after="chooses"),
+             demo.Step("chooses", "Chooses", _chooses), demo.Step("later", "Later", _whose))
+    result = demo.run_demo(tmp_path, quick=True, progress=False, steps=steps, parallel=True)
+    assert [s.key for s in result.report.sections] == ["reads", "chooses", "later"]  # page order
+    reads = result.report.sections[0].reading
+    assert reads.endswith("['protocol9'] plasticity") and not reads.startswith(f"pid {os.getpid()}:")
+
+
 def test_a_bug_in_a_step_run_aside_is_raised_not_written_into_the_page(tmp_path):
     steps = (ASIDE[0], demo.Step("bug", "Bug", _bug, alone=True))
     with pytest.raises(TypeError, match="a bug, not a failure"):

@@ -112,11 +112,14 @@ class DemoContext:
 class Step:
     """One section of the page: ``func(ctx, section)`` fills it.
 
-    ``alone``: the step needs no earlier step's result and gives none to a later one, so it may
-    run in a second process beside the others (:func:`rrfrei.app.demo.run_demo`, ``parallel``).
+    ``alone``: the step gives no result to a later step and needs none from an earlier one but
+    the tests and the best law, which it reads once the step ``after`` (a key; None: none) has
+    finished; it may then run in a second process beside the others
+    (:func:`rrfrei.app.demo.run_demo`, ``parallel``).
     """
 
     key: str
     title: str
     func: Callable[[DemoContext, Section], None]
     alone: bool = False
+    after: str | None = None

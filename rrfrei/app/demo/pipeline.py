@@ -79,6 +79,62 @@ def _can_run_aside(step: Step) -> bool:
     return True
 
 
+def _handoff(ctx: DemoContext) -> DemoContext:
+    """What a step run aside may read of the steps before it: the settings, the tests and the best
+    law (picklable; the calibrations stay here)."""
+    return DemoContext(settings=ctx.settings, progress=False, tests=dict(ctx.tests), best_law=ctx.best_law)
+
+
+def _run_steps(steps: Sequence[Step], ctx: DemoContext, aside: set[str],
+               progress: bool) -> dict[str, Section]:
+    """Run ``steps``: those in ``aside`` in one second (spawned) process, in the order they become
+    ready (at once, or when the step they come ``after`` has finished here), the others here in
+    page order.  Returns the sections by key."""
+    sections: dict[str, Section] = {}
+    pending: dict[str, Future] = {}
+    here = [s for s in steps if s.key not in aside]
+    waiting = [s for s in steps if s.key in aside]
+    pool = None
+    if waiting:
+        import multiprocessing
+
+        # spawn, not fork: the parent's Numba thread pool and BLAS threads do not survive a fork
+        pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_side_process)
+    done_here: set[str] = set()
+
+    def submit_ready() -> None:
+        for s in list(waiting):
+            if s.after is None or s.after in done_here or s.after not in {h.key for h in here}:
+                pending[s.key] = pool.submit(run_step, s, _handoff(ctx))
+                waiting.remove(s)
+
+    try:
+        if pool is not None:
+            submit_ready()
+        bar = _steps.tqdm_or_plain(steps, progress, desc="rrfrei demo", unit="step")
+        order = iter(bar)
+        for step in here:
+            next(order, None)
+            if hasattr(bar, "set_postfix_str"):
+                bar.set_postfix_str(step.key)
+            sections[step.key] = run_step(step, ctx)
+            done_here.add(step.key)
+            if waiting:
+                submit_ready()
+        for key, fut in pending.items():
+            next(order, None)
+            if hasattr(bar, "set_postfix_str"):
+                bar.set_postfix_str(key)
+            sections[key] = fut.result()  # a bug in a step run aside is raised here, as it would be here
+        for _ in order:
+            pass
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+    return sections
+
+
 def run_demo(
     out: str | Path = "rrfrei-report",
     *,
@@ -99,10 +155,10 @@ def run_demo(
     progress : show tqdm progress bars on the long steps.
     settings : explicit step sizes (overrides ``quick``/``seed``).
     steps : the steps to run (default :data:`rrfrei.app.demo.steps.STEPS`).
-    parallel : run the steps marked ``alone`` (they need no other step's result: the shake-table
-        building, the rubber fits) in a second process while this one runs the chain from
-        calibration to propagation; the page is the same, in the same order.  None (default):
-        when the machine has at least 2 cores.
+    parallel : run the steps marked ``alone`` in a second process while this one runs the others:
+        at once (the shake-table building, the rubber fits) or once the step they come ``after``
+        has finished here (the gap diagnosis needs the best law of the comparison); the page is
+        the same, in the same order.  None (default): when the machine has at least 2 cores.
 
     Returns
     -------
@@ -159,27 +215,12 @@ def run_demo(
     t0 = time.perf_counter()
     if parallel is None:
         parallel = (os.cpu_count() or 1) >= 2
-    aside = [s for s in steps if _can_run_aside(s)] if parallel else []
-    pending: dict[str, Future] = {}
-    pool = None
-    if len(aside) and len(aside) < len(steps):
-        import multiprocessing
-
-        # spawn, not fork: the parent's Numba thread pool and BLAS threads do not survive a fork
-        pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_side_process)
-        side_ctx = DemoContext(settings=settings, progress=False)
-        pending = {s.key: pool.submit(run_step, s, side_ctx) for s in aside}
-    try:
-        bar = _steps.tqdm_or_plain(steps, progress, desc="rrfrei demo", unit="step")
-        for step in bar:
-            if hasattr(bar, "set_postfix_str"):
-                bar.set_postfix_str(step.key)
-            # a bug in a step run aside is raised here, as it would be in this process
-            report.add(pending[step.key].result() if step.key in pending else run_step(step, ctx))
-    finally:
-        if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
+    aside = {s.key for s in steps if _can_run_aside(s)} if parallel else set()
+    if len(aside) == len(steps):
+        aside = set()  # nothing would run here: no second process
+    sections = _run_steps(steps, ctx, aside, progress)
+    for step in steps:
+        report.add(sections[step.key])
     seconds = time.perf_counter() - t0
     report.meta["total time"] = f"{seconds:.0f} s"
     page = report.write(out)
