@@ -16,16 +16,8 @@ Run: ``python benchmarks/bench_laws.py [--quick]``.
 
 from __future__ import annotations
 
-import os
-import sys
-import tempfile
-from pathlib import Path
-
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(1, str(HERE.parent))
-sys.path.insert(2, str(HERE.parent / "tests"))
-
+import _paths  # noqa: F401, E402  (first: this folder, the root and tests/ on sys.path)
+import _peer as peer  # noqa: E402
 import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
 import numpy as np  # noqa: E402
 from _results import report  # noqa: E402
@@ -57,24 +49,17 @@ def opensees_side(ops, law: str, p: dict, u: np.ndarray) -> tm.Side:
     """openseespy: build + recorder (untimed), ``analyze(n)`` (timed), wipe + read file (untimed)."""
     import opensees_harness as h
 
-    def setup():
-        fd, path = tempfile.mkstemp(suffix=".out")
-        os.close(fd)
+    def build(path):
         idx, sign = h._build(ops, law, p, u)
-        ops.recorder("Element", "-binary", path, "-ele", 1, "force")  # tm.read_binary_recorder
-        return path, idx, sign
+        ops.recorder("Element", "-binary", path, "-ele", 1, "force")
+        return idx, sign
 
-    def finish(state, status):
-        path, idx, sign = state
-        ops.wipe()  # flushes and closes the recorder
-        try:
-            if status != 0:
-                raise RuntimeError(f"openseespy analysis of {law} failed (status {status})")
-            return sign * tm.read_binary_recorder(path, 6 if law in h.TWO_D else 12)[-u.size:, idx]
-        finally:
-            os.unlink(path)
+    def read(path, built):
+        idx, sign = built
+        return sign * tm.read_binary_recorder(path, 6 if law in h.TWO_D else 12)[-u.size:, idx]
 
-    return tm.Side("openseespy", lambda _s: ops.analyze(u.size), setup, finish)
+    return peer.recorder_side(ops, "openseespy", f"analysis of {law}", build,
+                              lambda: ops.analyze(u.size), read)
 
 
 def max_rel(f: np.ndarray, f_os: np.ndarray) -> float:
@@ -114,11 +99,8 @@ def main() -> None:
         "## bench_laws (isolator laws against openseespy)",
         "",
         f"Each law over the same {u.size:,}-step history (sine cycles of 200 steps, amplitude "
-        "2 -> 40 mm). **Per core**, both single-threaded, median of "
-        f"{repeat} interleaved runs after one warm-up each. openseespy: one `analyze({u.size})` "
-        "with a `-binary` element recorder (full precision, no text formatting inside "
-        "`analyze`); building the model, `ops.wipe()` and reading the recorder file "
-        "are outside its timer. rrfrei: `simulate_force` (validation and output included). "
+        f"2 -> 40 mm). {peer.method(repeat, u.size)} "
+        "rrfrei: `simulate_force` (validation and output included). "
         "Ratio = openseespy median / rrfrei median; the forces are asserted equal "
         f"(<= {TOLERANCE:g} of the peak) in the same run.",
         "",
@@ -128,10 +110,7 @@ def main() -> None:
         "",
         "A law history is sequential: no multi-core figure (calibration and propagation batch many).",
         "",
-        "Cold start in a fresh interpreter (`import rrfrei` + first `simulate_force`, bouc_wen; "
-        f"temporary `NUMBA_CACHE_DIR`): empty cache {cold.cold['import']:.2f} s + {cold.cold['first']:.2f} s "
-        f"(compilation), warm cache (filled by that run) {cold.warm['import']:.2f} s + "
-        f"{cold.warm['first']:.2f} s." + "".join(f" Note: {n}." for n in cold.notes),
+        peer.cold_start(cold, "`import rrfrei` + first `simulate_force`, bouc_wen"),
     ]
     head["steps"] = int(u.size)
     report("bench_laws", "\n".join(lines), quick=args.quick, headline=head)

@@ -21,20 +21,14 @@ Run ``python benchmarks/bench_plan_building.py [--quick]``; writes section
 
 from __future__ import annotations
 
-import os
-import sys
-import tempfile
 from dataclasses import replace
-from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(1, str(HERE.parent))
-sys.path.insert(2, str(HERE.parent / "tests"))
-
+import _paths  # noqa: F401, E402  (first: this folder, the root and tests/ on sys.path)
+import _peer as peer  # noqa: E402
 import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
 import numpy as np  # noqa: E402
 from _results import report  # noqa: E402
+from bench_time_history import batch_params  # noqa: E402  (the same draws)
 
 import ground_motions  # noqa: E402
 import structures  # noqa: E402
@@ -59,36 +53,17 @@ def opensees_side(ops, bld, ag, dt) -> tm.Side:
     """openseespy: model + recorder (untimed), one ``analyze`` call (timed), wipe + read (untimed)."""
     from opensees_plan_building import build
 
-    def setup():
-        fd, path = tempfile.mkstemp(suffix=".out")
-        os.close(fd)
+    def model(path):
         build(ops, bld, ag, dt)
         ops.recorder("Node", "-binary", path, "-node", 2, "-dof", 1, 2, "disp")
-        return path
 
-    def finish(path, status):
-        ops.wipe()  # flushes and closes the recorder
-        try:
-            if status != 0:
-                raise RuntimeError(f"openseespy plan time history failed (status {status})")
-            return tm.read_binary_recorder(path, 2)
-        finally:
-            os.unlink(path)
-
-    return tm.Side("openseespy 3-D", lambda _s: ops.analyze(ag.shape[0] - 1, dt), setup, finish)
+    return peer.recorder_side(ops, "openseespy 3-D", "plan time history", model,
+                              lambda: ops.analyze(ag.shape[0] - 1, dt),
+                              lambda path, _: tm.read_binary_recorder(path, 2))
 
 
 def agree(resp: structures.PlanResponse, u: np.ndarray) -> float:
     return float(np.max(np.abs(u - resp.isolator_disp[1:])) / np.max(np.abs(u)))
-
-
-def batch_params(bld, n: int) -> np.ndarray:
-    rng = np.random.default_rng(0)
-    P = np.tile(bld.isolator.packed(), (n, 1))
-    P[:, 0] *= np.exp(rng.normal(0, 0.1, n))
-    P[:, 1] *= np.exp(rng.normal(0, 0.1, n))
-    P[:, 2] = np.clip(P[:, 2] * np.exp(rng.normal(0, 0.1, n)), 0.05, 0.9)
-    return P
 
 
 def main() -> None:

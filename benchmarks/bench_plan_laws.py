@@ -19,16 +19,8 @@ Run: ``python benchmarks/bench_plan_laws.py [--quick]``.
 
 from __future__ import annotations
 
-import os
-import sys
-import tempfile
-from pathlib import Path
-
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(1, str(HERE.parent))
-sys.path.insert(2, str(HERE.parent / "tests"))
-
+import _paths  # noqa: F401, E402  (first: this folder, the root and tests/ on sys.path)
+import _peer as peer  # noqa: E402
 import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
 import numpy as np  # noqa: E402
 from _results import report  # noqa: E402
@@ -62,23 +54,13 @@ def opensees_side(ops, law: str, p: dict, u: np.ndarray) -> tm.Side:
     """openseespy: build + recorder (untimed), ``analyze(n)`` (timed), wipe + read file (untimed)."""
     import opensees_plan as h
 
-    def setup():
-        fd, path = tempfile.mkstemp(suffix=".out")
-        os.close(fd)
+    def build(path):
         h._build(ops, law, p, u)
-        ops.recorder("Element", "-binary", path, "-ele", 1, "force")  # tm.read_binary_recorder
-        return path
+        ops.recorder("Element", "-binary", path, "-ele", 1, "force")
 
-    def finish(path, status):
-        ops.wipe()  # flushes and closes the recorder
-        try:
-            if status != 0:
-                raise RuntimeError(f"openseespy analysis of {law} failed (status {status})")
-            return tm.read_binary_recorder(path, 12)[-u.shape[0]:, 6:8]
-        finally:
-            os.unlink(path)
-
-    return tm.Side("openseespy", lambda _s: ops.analyze(u.shape[0]), setup, finish)
+    return peer.recorder_side(ops, "openseespy", f"analysis of {law}", build,
+                              lambda: ops.analyze(u.shape[0]),
+                              lambda path, _: tm.read_binary_recorder(path, 12)[-u.shape[0]:, 6:8])
 
 
 def max_rel(f: np.ndarray, f_os: np.ndarray) -> float:
@@ -123,12 +105,9 @@ def main() -> None:
         "",
         f"Each plan law over the same {u.shape[0]:,}-step two-component history (x: sine cycles "
         "of 200 steps, y: 0.8 x that amplitude, cycles of 150 steps, phase 0.7; amplitude "
-        "2 -> 40 mm). **Per core**, both single-threaded, median of "
-        f"{repeat} interleaved runs after one warm-up each. openseespy: the 3-D zero-length "
-        f"element, both horizontal DOFs imposed, one `analyze({u.shape[0]})` with a `-binary` element "
-        "recorder (full precision, no text formatting inside `analyze`); building the model, "
-        "`ops.wipe()` and reading the recorder file are outside its "
-        "timer. rrfrei: `simulate_force` on the (n, 2) path (validation and output included). "
+        "2 -> 40 mm). "
+        + peer.method(repeat, u.shape[0], "the 3-D zero-length element, both horizontal DOFs imposed, ")
+        + " rrfrei: `simulate_force` on the (n, 2) path (validation and output included). "
         "Ratio = openseespy median / rrfrei median; the forces (both components) are asserted "
         f"equal (<= {TOLERANCE:g} of the peak) in the same run.",
         "",
@@ -140,11 +119,7 @@ def main() -> None:
         "A law history is sequential: no multi-core figure."
         + (f" Not benchmarked (no parameters in this script): {', '.join(skipped)}." if skipped else ""),
         "",
-        "Cold start in a fresh interpreter (`import rrfrei` + first plan `simulate_force`, "
-        f"bouc_wen; temporary `NUMBA_CACHE_DIR`): empty cache {cold.cold['import']:.2f} s + "
-        f"{cold.cold['first']:.2f} s (compilation), warm cache (filled by that run) "
-        f"{cold.warm['import']:.2f} s + {cold.warm['first']:.2f} s."
-        + "".join(f" Note: {n}." for n in cold.notes),
+        peer.cold_start(cold, "`import rrfrei` + first plan `simulate_force`, bouc_wen"),
     ]
     report("bench_plan_laws", "\n".join(lines), quick=args.quick, headline=head)
 

@@ -42,24 +42,11 @@ TOLERANCE = 1e-9  # max relative difference of Sd between ours and each peer
 
 
 def coefficients(w: np.ndarray, zeta: float, dt: float) -> np.ndarray:
-    """Nigam-Jennings coefficients (8, periods) for unit mass (Chopra, Table 5.2.1), in NumPy."""
-    k = w * w
-    s1z = np.sqrt(1.0 - zeta * zeta)
-    wd = w * s1z
-    e = np.exp(-zeta * w * dt)
-    s = np.sin(wd * dt)
-    c = np.cos(wd * dt)
-    r = zeta / s1z
-    wdt = w * dt
-    a = e * (r * s + c)
-    b = e * s / wd
-    cc = (2 * zeta / wdt + e * (((1 - 2 * zeta**2) / (wd * dt) - r) * s - (1 + 2 * zeta / wdt) * c)) / k
-    d = (1 - 2 * zeta / wdt + e * ((2 * zeta**2 - 1) / (wd * dt) * s + 2 * zeta / wdt * c)) / k
-    ap = -e * w / s1z * s
-    bp = e * (c - r * s)
-    cp = (-1 / dt + e * ((w / s1z + r / dt) * s + c / dt)) / k
-    dp = (1 - e * (r * s + c)) / (k * dt)
-    return np.array([a, b, cc, d, ap, bp, cp, dp])
+    """Nigam-Jennings coefficients (8, periods) for unit mass (Chopra, Table 5.2.1): those of
+    :func:`ground_motions.spectra.coefficients` (checked against the matrix exponential in
+    ``tests/test_spectra.py``), one column per circular frequency; outside every timer's hot
+    loop (one evaluation per period), so the peers time the recurrence alone."""
+    return np.array([gm.spectra.coefficients(float(x), zeta, dt) for x in np.atleast_1d(w)]).T
 
 
 def numpy_sd(rec: gm.Record) -> np.ndarray:

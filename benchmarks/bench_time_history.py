@@ -18,16 +18,8 @@ Run ``python benchmarks/bench_time_history.py [--quick]``; writes section ``benc
 
 from __future__ import annotations
 
-import os
-import sys
-import tempfile
-from pathlib import Path
-
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(1, str(HERE.parent))
-sys.path.insert(2, str(HERE.parent / "tests"))
-
+import _paths  # noqa: F401, E402  (first: this folder, the root and tests/ on sys.path)
+import _peer as peer  # noqa: E402
 import _timing as tm  # noqa: E402  (first: pins BLAS threads before numpy)
 import numpy as np  # noqa: E402
 from _results import report  # noqa: E402
@@ -49,26 +41,18 @@ def opensees_side(ops, bld, rec) -> tm.Side:
     """openseespy: model + recorder (untimed), one ``analyze`` call (timed), wipe + read (untimed)."""
     from opensees_dynamic import build
 
-    def setup():
-        fd, path = tempfile.mkstemp(suffix=".out")
-        os.close(fd)
+    def model(path):
         roof = build(ops, bld, rec.accel, rec.dt)
         ops.recorder("Node", "-binary", path, "-node", 2, roof, "-dof", 1, "disp")
-        return path
 
-    def finish(path, status):
-        ops.wipe()  # flushes and closes the recorder
-        try:
-            if status != 0:
-                raise RuntimeError(f"openseespy time history failed (status {status})")
-            return tm.read_binary_recorder(path, 2)[:, 0]
-        finally:
-            os.unlink(path)
-
-    return tm.Side("openseespy", lambda _s: ops.analyze(rec.npts - 1, rec.dt), setup, finish)
+    return peer.recorder_side(ops, "openseespy", "time history", model,
+                              lambda: ops.analyze(rec.npts - 1, rec.dt),
+                              lambda path, _: tm.read_binary_recorder(path, 2)[:, 0])
 
 
 def batch_params(bld, n: int) -> np.ndarray:
+    """``n`` isolator parameter rows around ``bld``'s: k_init and qd times lognormal factors
+    (sd 0.1 in log), alpha1 likewise, clipped to [0.05, 0.9] (seed 0)."""
     rng = np.random.default_rng(0)
     P = np.tile(bld.isolator.packed(), (n, 1))
     P[:, 0] *= np.exp(rng.normal(0, 0.1, n))

@@ -61,6 +61,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .pairs import RecordPair
+from .record import ReadOnlyArrays
 from .rotd import rotd_spectrum
 from .scaling import Target, target_psa
 from .spectra import design_spectrum
@@ -95,7 +96,7 @@ def mcer_target(sds: float, sd1: float, tl: float) -> Callable[[np.ndarray], np.
 
 
 @dataclass(frozen=True, eq=False)
-class ScaledSuite:
+class ScaledSuite(ReadOnlyArrays):
     """A suite of pairs scaled per ASCE 7-22 Section 17.3.3 (arrays read-only).
 
     Attributes
@@ -140,11 +141,10 @@ class ScaledSuite:
     damping: float = 0.05
     method: str = "log-ls"
 
+    ARRAYS = ("factors", "periods", "target", "rotd100", "average", "ratio")
+
     def __post_init__(self) -> None:
-        for f in ("factors", "periods", "target", "rotd100", "average", "ratio"):
-            a = np.array(getattr(self, f), dtype=np.float64)
-            a.setflags(write=False)
-            object.__setattr__(self, f, a)
+        self._freeze()
         object.__setattr__(self, "pairs", tuple(self.pairs))
 
     @property

@@ -40,6 +40,7 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -102,6 +103,24 @@ def _fmt_deg(x: float) -> str:
     return f"{x:.6g}"
 
 
+def _check_components(a: Record, b: Record, where: str, which: Callable[[Record], str]) -> None:
+    """Refuse a pair of components that cannot be one pair: a vertical one (ValueError that names
+    it by ``which(rec)``) or two time steps more than 1e-9 apart (ValueError after ``where``).
+    Both the constructor of :class:`RecordPair` and the file reader :func:`read_pair` (which
+    names the file and channel) check through here."""
+    for rec in (a, b):
+        if is_vertical(rec.meta.get("component", "")):
+            raise ValueError(
+                f"{which(rec)} is a vertical component ({rec.meta.get('component')!r}); a pair "
+                "holds two horizontal components"
+            )
+    if not math.isclose(a.dt, b.dt, rel_tol=1e-9):
+        raise ValueError(
+            f"{where}: the components have different time steps ({a.name}: dt = {a.dt:g} s, "
+            f"{b.name}: dt = {b.dt:g} s); resample one first (Record.resampled)"
+        )
+
+
 def _common_name(a: str, b: str) -> str:
     prefix = os.path.commonprefix([a, b]).rstrip("-_. ")
     if prefix:
@@ -157,18 +176,8 @@ class RecordPair:
                     f"RecordPair {self.name!r}: {label} must be a ground_motions.Record, got "
                     f"{type(rec).__name__}"
                 )
-        if not math.isclose(a.dt, b.dt, rel_tol=1e-9):
-            raise ValueError(
-                f"RecordPair {self.name or _common_name(a.name, b.name)!r}: the components have "
-                f"different time steps ({a.name}: dt = {a.dt:g} s, {b.name}: dt = {b.dt:g} s); "
-                "resample one first (Record.resampled)"
-            )
-        for rec in (a, b):
-            if is_vertical(rec.meta.get("component", "")):
-                raise ValueError(
-                    f"RecordPair: {rec.name!r} is a vertical component "
-                    f"({rec.meta.get('component')!r}); a pair holds two horizontal components"
-                )
+        _check_components(a, b, f"RecordPair {self.name or _common_name(a.name, b.name)!r}",
+                          lambda rec: f"RecordPair: {rec.name!r}")
         name = str(self.name) if self.name else _common_name(a.name, b.name)
         recorded = self.npts_recorded or (a.npts, b.npts)
         n = max(a.npts, b.npts)
@@ -434,17 +443,9 @@ def read_pair(
         if check_station:
             _check_same_station(a, b, pa, pb)
     where = f"{pa}" if pb == pa else f"{pa} and {pb}"
-    for rec, p in ((a, pa), (b, pb)):
-        if is_vertical(rec.meta.get("component", "")):
-            raise ValueError(
-                f"{p}: channel {rec.meta.get('channel', 1)} is the vertical component "
-                f"({rec.meta.get('component')!r}); a pair needs two horizontal components"
-            )
-    if not math.isclose(a.dt, b.dt, rel_tol=1e-9):
-        raise ValueError(
-            f"{where}: the components have different time steps (dt = {a.dt:g} s and {b.dt:g} s); "
-            "resample one first (Record.resampled)"
-        )
+    source = {id(a): pa, id(b): pb}
+    _check_components(a, b, where,
+                      lambda rec: f"{source[id(rec)]}: channel {rec.meta.get('channel', 1)}")
     try:
         return RecordPair(a, b, name or "")
     except ValueError as exc:

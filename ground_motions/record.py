@@ -7,13 +7,31 @@ only ``Record.dt`` [s] and ``Record.accel`` [m/s^2].
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
 #: Standard gravity [m/s^2] (CGPM 1901), used for every conversion from g.
 G = 9.80665
+
+
+class ReadOnlyArrays:
+    """Mixin of the package's frozen result dataclasses (spectra, RotD spectra, scaled suites):
+    the fields named in ``ARRAYS`` are stored as read-only float64 copies (:meth:`_freeze`, called
+    from ``__post_init__``), and an instance pickles through its constructor, so an unpickled
+    one (e.g. in a Dask worker) is read-only too."""
+
+    ARRAYS: tuple[str, ...] = ()
+
+    def _freeze(self) -> None:
+        for f in self.ARRAYS:
+            a = np.array(getattr(self, f), dtype=np.float64)
+            a.setflags(write=False)
+            object.__setattr__(self, f, a)
+
+    def __reduce__(self):
+        return (type(self), tuple(getattr(self, f.name) for f in fields(self)))
 
 
 @dataclass(frozen=True, eq=False)

@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit, prange
 
 from .pairs import RecordPair
+from .record import ReadOnlyArrays
 from .spectra import Spectrum, _check_damping, _check_periods, _history, response_spectrum
 
 
@@ -95,7 +96,7 @@ def _percentiles(percentile) -> tuple[float, ...]:
 
 
 @dataclass(frozen=True, eq=False)
-class RotDSpectrum:
+class RotDSpectrum(ReadOnlyArrays):
     """RotDnn spectra of a pair (arrays read-only).
 
     Attributes
@@ -125,16 +126,11 @@ class RotDSpectrum:
     damping: float = 0.05
     name: str = ""
 
-    def __post_init__(self) -> None:
-        for f in ("periods", "sd", "psa", "angles", "angle_sd"):
-            a = np.array(getattr(self, f), dtype=np.float64)
-            a.setflags(write=False)
-            object.__setattr__(self, f, a)
-        object.__setattr__(self, "percentiles", tuple(float(p) for p in self.percentiles))
+    ARRAYS = ("periods", "sd", "psa", "angles", "angle_sd")
 
-    def __reduce__(self):
-        return (RotDSpectrum, (self.periods, self.percentiles, self.sd, self.psa, self.angles,
-                               self.angle_sd, self.damping, self.name))
+    def __post_init__(self) -> None:
+        self._freeze()
+        object.__setattr__(self, "percentiles", tuple(float(p) for p in self.percentiles))
 
     def _row(self, nn: float) -> int:
         for i, p in enumerate(self.percentiles):

@@ -14,8 +14,9 @@ so the only error is the assumption of a linear ``a_g`` between samples (the fil
 interpolation) and peaks falling between samples. The coefficients are checked against the
 matrix exponential of the augmented state-space system (``tests/test_spectra.py``).
 
-Kernels (``@njit``): ``_coefficients``, ``_history`` (one period, full history) and
-``_peaks`` (``prange`` over periods, peak ``|u|`` only, no allocation in the time loop).
+Kernels (``@njit``): ``coefficients`` (public: the benchmark's NumPy peer reads it),
+``_history`` (one period, full history) and ``_peaks`` (``prange`` over periods, peak ``|u|``
+only, no allocation in the time loop).
 """
 
 from __future__ import annotations
@@ -26,11 +27,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from .record import G, Record
+from .record import G, ReadOnlyArrays, Record
 
 
 @njit(cache=True)
-def _coefficients(w: float, zeta: float, dt: float) -> tuple:
+def coefficients(w: float, zeta: float, dt: float) -> tuple:
     """Nigam-Jennings coefficients (A, B, C, D, A', B', C', D') for unit mass, 0 <= zeta < 1."""
     k = w * w
     s1z = math.sqrt(1.0 - zeta * zeta)
@@ -57,7 +58,7 @@ def _coefficients(w: float, zeta: float, dt: float) -> tuple:
 @njit(cache=True)
 def _history(ag: np.ndarray, dt: float, w: float, zeta: float, u: np.ndarray, v: np.ndarray) -> None:
     """Fill ``u``, ``v`` (length of ``ag``) with the response from rest to ``-ag``."""
-    a, b, cc, d, ap, bp, cp, dp = _coefficients(w, zeta, dt)
+    a, b, cc, d, ap, bp, cp, dp = coefficients(w, zeta, dt)
     u[0] = 0.0
     v[0] = 0.0
     for i in range(ag.size - 1):
@@ -75,7 +76,7 @@ def _peaks(ag: np.ndarray, dt: float, omegas: np.ndarray, zeta: float, sd: np.nd
         if w <= 0.0:
             sd[j] = 0.0
             continue
-        a, b, cc, d, ap, bp, cp, dp = _coefficients(w, zeta, dt)
+        a, b, cc, d, ap, bp, cp, dp = coefficients(w, zeta, dt)
         u = 0.0
         v = 0.0
         peak = 0.0
@@ -91,7 +92,7 @@ def _peaks(ag: np.ndarray, dt: float, omegas: np.ndarray, zeta: float, sd: np.nd
 
 
 @dataclass(frozen=True, eq=False)
-class Spectrum:
+class Spectrum(ReadOnlyArrays):
     """A response spectrum (arrays read-only).
 
     Attributes
@@ -117,14 +118,10 @@ class Spectrum:
     damping: float = 0.05
     name: str = ""
 
-    def __post_init__(self) -> None:
-        for f in ("periods", "sd", "sv", "psa"):
-            a = np.array(getattr(self, f), dtype=np.float64)
-            a.setflags(write=False)
-            object.__setattr__(self, f, a)
+    ARRAYS = ("periods", "sd", "sv", "psa")
 
-    def __reduce__(self):
-        return (Spectrum, (self.periods, self.sd, self.sv, self.psa, self.damping, self.name))
+    def __post_init__(self) -> None:
+        self._freeze()
 
     def at(self, period: float | np.ndarray) -> np.ndarray:
         """PSA [m/s^2] at ``period`` [s] by linear interpolation (clamped at the ends)."""

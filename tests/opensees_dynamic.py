@@ -27,12 +27,11 @@ import tempfile
 
 import numpy as np
 
-AXIAL_K = 1.0e6  # kN/m: axial / rotational materials of the 2-D bearings (DOFs fixed anyway)
-KBULK = 2.0e6  # kN/m^2: rubber bulk modulus (vertical terms only)
-TS = 0.001  # m: steel shim thickness (vertical terms only)
-HDR_GEOMETRY = {"gr": 500.0, "d1": 0.0, "d2": 0.3, "tr": 0.005, "n": 20}  # vertical terms only
-TWO_D = ("plasticity", "bouc_wen")
-THREE_D = ("elastomeric_x", "hdr")
+from rrfrei.laws import opensees_laws
+from tests.opensees_harness import bearing_model, element_args, opensees_ndm, transient_analysis
+
+TWO_D = tuple(n for n in opensees_laws() if opensees_ndm(n) == 2)
+THREE_D = tuple(n for n in opensees_laws() if opensees_ndm(n) == 3)
 
 
 def prototype_params(law: str, p: dict, count: int, s: float) -> dict:
@@ -65,29 +64,6 @@ def prototype_params(law: str, p: dict, count: int, s: float) -> dict:
     return q
 
 
-def _isolator(ops, law: str, p: dict) -> None:
-    if law == "plasticity":
-        ops.element("elastomericBearingPlasticity", 1, 1, 2, p["k_init"], p["qd"], p["alpha1"],
-                    p["alpha2"], p["mu"], "-P", 1, "-Mz", 2, "-orient", 0, 1, 0, -1, 0, 0)
-    elif law == "bouc_wen":
-        ops.element("elastomericBearingBoucWen", 1, 1, 2, p["k_init"], p["qd"], p["alpha1"],
-                    p["alpha2"], p["mu"], p["eta"], p["beta"], p["gamma"], "-P", 1, "-Mz", 2,
-                    "-orient", 0, 1, 0, -1, 0, 0)
-    elif law == "elastomeric_x":
-        # Fy alpha Gr Kbulk D1 D2 ts tr n | x1 x2 x3 y1 y2 y3 | kc PhiM ac sDratio m cd tc tag1-4
-        ops.element("ElastomericX", 1, 1, 2, p["fy"], p["alpha"], p["gr"], KBULK, p["d1"], p["d2"], TS,
-                    p["tr"], float(p["n"]), 0, 0, 1, 1, 0, 0,
-                    10.0, 0.5, 1.0, 0.5, 0.0, p["cd"], p["tc"], 0, 0, 0, 0)
-    elif law == "hdr":
-        g = HDR_GEOMETRY
-        # Gr Kbulk D1 D2 ts tr n a1..c4 | x1..y3 | kc PhiM ac sDratio m tc
-        ops.element("HDR", 1, 1, 2, g["gr"], KBULK, g["d1"], g["d2"], TS, g["tr"], float(g["n"]),
-                    p["a1"], p["a2"], p["a3"], p["b1"], p["b2"], p["b3"], p["c1"], p["c2"], p["c3"],
-                    p["c4"], 0, 0, 1, 1, 0, 0, 10.0, 0.5, 1.0, 0.5, 0.0, 0.0)
-    else:
-        raise ValueError(f"no OpenSees element for law {law!r}")
-
-
 def build(ops, building, ag: np.ndarray, dt: float, *, tol: float = 1e-12, max_iter: int = 50,
           gamma: float = 0.5, beta: float = 0.25) -> int:
     """Build the model and the transient analysis; return the roof node tag."""
@@ -97,26 +73,9 @@ def build(ops, building, ag: np.ndarray, dt: float, *, tol: float = 1e-12, max_i
     n = building.n_stories
     masses = [building.base_mass, *building.story_masses]
     cs, cg = building.damping_coefficients()
-    ops.wipe()
-    if law in TWO_D:
-        ops.model("basic", "-ndm", 2, "-ndf", 3)
-        ops.node(1, 0.0, 0.0)
-        ops.fix(1, 1, 1, 1)
-        for j in range(n + 1):
-            ops.node(j + 2, 0.0, 0.0)
-            ops.fix(j + 2, 0, 1, 1)
-            ops.mass(j + 2, masses[j], 0.0, 0.0)
-        ops.uniaxialMaterial("Elastic", 1, AXIAL_K)
-        ops.uniaxialMaterial("Elastic", 2, AXIAL_K)
-    else:
-        ops.model("basic", "-ndm", 3, "-ndf", 6)
-        ops.node(1, 0.0, 0.0, 0.0)
-        ops.fix(1, 1, 1, 1, 1, 1, 1)
-        for j in range(n + 1):
-            ops.node(j + 2, 0.0, 0.0, 0.0)
-            ops.fix(j + 2, 0, 1, 1, 1, 1, 1)
-            ops.mass(j + 2, masses[j], 0.0, 0.0, 0.0, 0.0, 0.0)
-    _isolator(ops, law, p)
+    ndm = opensees_ndm(law)
+    bearing_model(ops, ndm, (1,), masses)  # X free, mass in X
+    ops.element(*element_args(law, p, ndm))  # the law's element and arguments (LawSpec.opensees)
     for i in range(n):  # story i+1 joins node i+2 (below) and node i+3
         ops.uniaxialMaterial("Elastic", 10 + i, building.story_stiffness[i], float(cs[i]))
         ops.element("zeroLength", 10 + i, i + 2, i + 3, "-mat", 10 + i, "-dir", 1)
@@ -126,13 +85,7 @@ def build(ops, building, ag: np.ndarray, dt: float, *, tol: float = 1e-12, max_i
             ops.element("zeroLength", 100 + j, 1, j + 2, "-mat", 100 + j, "-dir", 1)
     ops.timeSeries("Path", 1, "-dt", dt, "-values", *np.asarray(ag, dtype=float).tolist(), float(ag[-1]))
     ops.pattern("UniformExcitation", 1, 1, "-accel", 1)
-    ops.constraints("Plain")
-    ops.numberer("Plain")
-    ops.system("BandGeneral")
-    ops.test("NormDispIncr", tol, max_iter)
-    ops.algorithm("Newton")
-    ops.integrator("Newmark", gamma, beta)
-    ops.analysis("Transient")
+    transient_analysis(ops, tol=tol, max_iter=max_iter, gamma=gamma, beta=beta)
     return n + 2
 
 

@@ -19,12 +19,21 @@ command (:func:`rrfrei.calibration.results.opensees_command`).
 Use :func:`element_force` (one ``analyze(1)`` per sample, reads ``eleResponse``) in tests and
 :func:`element_force_recorder` (one ``analyze(n)`` call, element recorder to a file: openseespy's
 fastest path) in benchmarks.  Law parameters are the rrfrei ones (kN, m).
+
+The building blocks are shared by every openseespy peer of the tests (the plan driver
+:mod:`tests.opensees_plan`, the building models :mod:`tests.opensees_dynamic` and
+:mod:`tests.opensees_plan_building`, the exported-command check): :func:`element_args` (the
+law's element from its spec), :func:`bearing_model` (nodes, supports, masses, axial
+materials), :func:`impose`, :func:`static_analysis` / :func:`transient_analysis`,
+:func:`analyze_each` (step by step, local failures caught on opserr), :func:`recorded_forces`
+and :func:`check_against_opensees` (the differential contract).
 """
 
 from __future__ import annotations
 
 import io
 import os
+import re
 import sys
 import tempfile
 
@@ -39,50 +48,96 @@ TWO_D = tuple(n for n in opensees_laws() if 2 in get(n).opensees.dims)
 THREE_D = tuple(n for n in opensees_laws() if 2 not in get(n).opensees.dims)
 
 
-def _element_args(law: str, p: dict) -> list:
-    """``ops.element`` arguments of the law's OpenSees element (the law's spec,
-    :meth:`rrfrei.laws.LawSpec.opensees_args`): 2-D where OpenSees has it, else 3-D."""
+def opensees_ndm(law: str) -> int:
+    """Model dimension the harnesses build ``law``'s element in: 2 where OpenSees has the
+    element in 2-D (``LawSpec.opensees.dims``), else 3."""
     spec = get(law)
     if spec.opensees is None:
         raise ValueError(f"no OpenSees element for law {law!r}")
-    ndm = 2 if law in TWO_D else 3
+    return 2 if 2 in spec.opensees.dims else 3
+
+
+def element_args(law: str, p: dict, ndm: int) -> list:
+    """``ops.element`` arguments of the law's OpenSees element as element 1 between nodes 1
+    and 2 in a ``ndm``-D model with orientation :data:`ORIENT` (the law's spec,
+    :meth:`rrfrei.laws.LawSpec.opensees_args`; in 3-D material tags 1-4 for ``-P -T -My -Mz``,
+    in 2-D 1-2 for ``-P -Mz``, for the elements that take them)."""
+    spec = get(law)
     return [spec.opensees_element, 1, 1, 2, *spec.opensees_args(p, ndm=ndm, orient=ORIENT[ndm])]
+
+
+def _element_args(law: str, p: dict) -> list:
+    """:func:`element_args` in the dimension the harness uses (:func:`opensees_ndm`)."""
+    return element_args(law, p, opensees_ndm(law))
+
+
+def bearing_model(ops, ndm: int, free: tuple[int, ...], masses=(0.0,)) -> None:
+    """Wipe and build the nodes of a bearing model: a basic ``ndm``-D model (``-ndf`` 3 or 6),
+    node 1 at the origin and fixed, nodes 2, 3, ... at the origin, one per entry of ``masses``
+    [t], each free in the global DOFs ``free`` (1-based) and fixed in the others, with its mass
+    in every free DOF (none where it is 0: the static models); elastic materials of stiffness
+    :data:`AXIAL_K` with tags 1-2 (2-D) or 1-4 (3-D) for the element directions the shear law
+    does not model (``-P -Mz``, ``-P -T -My -Mz``)."""
+    ndf = 3 if ndm == 2 else 6
+    origin = [0.0] * ndm
+    ops.wipe()
+    ops.model("basic", "-ndm", ndm, "-ndf", ndf)
+    ops.node(1, *origin)
+    ops.fix(1, *([1] * ndf))
+    for j, mass in enumerate(masses):
+        ops.node(j + 2, *origin)
+        ops.fix(j + 2, *(0 if dof in free else 1 for dof in range(1, ndf + 1)))
+        if mass:
+            ops.mass(j + 2, *(mass if dof in free else 0.0 for dof in range(1, ndf + 1)))
+    for tag in range(1, (2 if ndm == 2 else 4) + 1):
+        ops.uniaxialMaterial("Elastic", tag, AXIAL_K)
+
+
+def impose(ops, dof: int, disp) -> None:
+    """Impose ``disp`` [m] on node 2's global ``dof`` (tag ``dof`` for its Path series and Plain
+    pattern): ``-dt 1`` and one padding value (PathSeries returns 0 at its last sample), so
+    analysis step k imposes ``disp[k-1]``."""
+    disp = np.asarray(disp, dtype=float)
+    ops.timeSeries("Path", dof, "-dt", 1.0, "-values", 0.0, *disp.tolist(), float(disp[-1]))
+    ops.pattern("Plain", dof, dof)
+    ops.sp(2, dof, 1.0)
+
+
+def _analysis(ops, constraints: str, test: tuple, integrator: tuple, kind: str) -> None:
+    ops.constraints(constraints)
+    ops.numberer("Plain")
+    ops.system("BandGeneral")
+    ops.test(*test)
+    ops.algorithm("Newton")
+    ops.integrator(*integrator)
+    ops.analysis(kind)
+
+
+def static_analysis(ops) -> None:
+    """Displacement control: Transformation constraints, Plain numberer, BandGeneral,
+    NormDispIncr 1e-12 (100 iterations), Newton, LoadControl 1.0 (step k at pseudo-time k)."""
+    _analysis(ops, "Transformation", ("NormDispIncr", 1e-12, 100), ("LoadControl", 1.0), "Static")
+
+
+def transient_analysis(ops, *, tol: float, max_iter: int, gamma: float, beta: float) -> None:
+    """Time history: Plain constraints and numberer, BandGeneral, NormDispIncr ``tol``
+    (``max_iter`` iterations), Newton, Newmark(``gamma``, ``beta``)."""
+    _analysis(ops, "Plain", ("NormDispIncr", tol, max_iter), ("Newmark", gamma, beta), "Transient")
+
+
+FREE = {2: (1, 2), 3: (1, 3)}
+"""Free DOFs of node 2 in the one-axis models: global X (imposed) and the vertical."""
 
 
 def _build(ops, law: str, params: dict, disp: np.ndarray) -> tuple[int, float]:
     """Build the model; return (index of the node-j X component in eleResponse force, sign)."""
-    ops.wipe()
-    if law in TWO_D:
-        ops.model("basic", "-ndm", 2, "-ndf", 3)
-        ops.node(1, 0.0, 0.0)
-        ops.node(2, 0.0, 0.0)
-        ops.fix(1, 1, 1, 1)
-        ops.fix(2, 0, 0, 1)
-        ops.uniaxialMaterial("Elastic", 1, AXIAL_K)
-        ops.uniaxialMaterial("Elastic", 2, AXIAL_K)
-        idx, sign = 3, -1.0
-    elif law in THREE_D:
-        ops.model("basic", "-ndm", 3, "-ndf", 6)
-        ops.node(1, 0.0, 0.0, 0.0)
-        ops.node(2, 0.0, 0.0, 0.0)
-        ops.fix(1, 1, 1, 1, 1, 1, 1)
-        ops.fix(2, 0, 1, 0, 1, 1, 1)
-        idx, sign = 6, 1.0
-    else:
-        raise ValueError(f"no OpenSees element for law {law!r}")
-    ops.element(*_element_args(law, params))
-    values = [0.0, *(sign * np.asarray(disp, dtype=float)).tolist(), sign * float(disp[-1])]
-    ops.timeSeries("Path", 1, "-dt", 1.0, "-values", *values)
-    ops.pattern("Plain", 1, 1)
-    ops.sp(2, 1, 1.0)
-    ops.constraints("Transformation")
-    ops.numberer("Plain")
-    ops.system("BandGeneral")
-    ops.test("NormDispIncr", 1e-12, 100)
-    ops.algorithm("Newton")
-    ops.integrator("LoadControl", 1.0)
-    ops.analysis("Static")
-    return idx, sign
+    ndm = opensees_ndm(law)
+    bearing_model(ops, ndm, FREE[ndm])
+    ops.element(*element_args(law, params, ndm))
+    sign = -1.0 if ndm == 2 else 1.0
+    impose(ops, 1, sign * np.asarray(disp, dtype=float))
+    static_analysis(ops)
+    return (3 if ndm == 2 else 6), sign
 
 
 class _CaptureStderr:
@@ -161,24 +216,22 @@ def spurious_cut(law: str, p: dict, disp, f_os, fail_os: int, ours) -> int | Non
     return j
 
 
-def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int, int]:
-    """Basic shear force [kN] of the OpenSees element along ``disp`` [m].
+def analyze_each(ops, n: int, read) -> tuple[int, int]:
+    """Run ``n`` analysis steps one ``analyze(1)`` at a time, calling ``read(k)`` after each
+    converged step k, then wipe.
 
-    Returns ``(force, n_ok, first_local_failure)``: ``n_ok`` samples converged globally
-    (``n_ok < len(disp)`` when ``analyze`` failed at sample ``n_ok``; later forces are NaN), and
-    ``first_local_failure`` is the first sample at which the element's ``update()`` reported a
-    failed local Newton solve (its WARNING on opserr), or -1.  openseespy 3.7.1.2 does not stop
-    the analysis on such a failure: the next ``update()`` call of the same step continues the
-    local Newton from the stuck trial z.
+    Returns ``(n_ok, first_local_failure)``: ``n_ok`` steps converged globally (``n_ok < n``
+    when ``analyze`` failed at step ``n_ok``; no later step runs), and ``first_local_failure``
+    is the first step at which the element's ``update()`` reported a failed local Newton solve
+    (its WARNING on opserr), or -1.  openseespy 3.7.1.2 does not stop the analysis on such a
+    failure: the next ``update()`` call of the same step continues the local Newton from the
+    stuck trial z.
     """
-    disp = np.asarray(disp, dtype=float)
-    idx, sign = _build(ops, law, params, disp)
-    out = np.full(disp.size, np.nan)
     first_fail = -1
-    n_ok = disp.size
+    n_ok = n
     with _CaptureStderr() as cap:
         seen = 0
-        for k in range(disp.size):
+        for k in range(n):
             status = ops.analyze(1)
             text = cap.text()
             if first_fail < 0 and len(text) > seen and "update()" in text[seen:]:
@@ -187,8 +240,45 @@ def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int, i
             if status != 0:
                 n_ok = k
                 break
-            out[k] = sign * ops.eleResponse(1, "force")[idx]
+            read(k)
         ops.wipe()
+    return n_ok, first_fail
+
+
+def recorded_forces(ops, law: str, n: int, path: str | None = None) -> np.ndarray:
+    """Element 1's ``force`` response over ``n`` steps from one ``analyze(n)`` call with an
+    element recorder to ``path`` (a temporary file when None; openseespy's fastest path):
+    the recorder's last ``n`` rows.  Raises RuntimeError if the analysis fails."""
+    own = path is None
+    if own:
+        fd, path = tempfile.mkstemp(suffix=".out")
+        os.close(fd)
+    try:
+        ops.recorder("Element", "-file", path, "-precision", 17, "-ele", 1, "force")
+        status = ops.analyze(n)
+        ops.wipe()  # flushes and closes the recorder
+        if status != 0:
+            raise RuntimeError(f"OpenSees analysis of {law} failed (status {status})")
+        return np.loadtxt(path, ndmin=2)[-n:]
+    finally:
+        if own:
+            os.unlink(path)
+
+
+def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int, int]:
+    """Basic shear force [kN] of the OpenSees element along ``disp`` [m].
+
+    Returns ``(force, n_ok, first_local_failure)`` (:func:`analyze_each`; forces after a
+    global failure are NaN).
+    """
+    disp = np.asarray(disp, dtype=float)
+    idx, sign = _build(ops, law, params, disp)
+    out = np.full(disp.size, np.nan)
+
+    def read(k):
+        out[k] = sign * ops.eleResponse(1, "force")[idx]
+
+    n_ok, first_fail = analyze_each(ops, disp.size, read)
     return out, n_ok, first_fail
 
 
@@ -199,18 +289,73 @@ def element_force_recorder(ops, law: str, params: dict, disp, path: str | None =
     """
     disp = np.asarray(disp, dtype=float)
     idx, sign = _build(ops, law, params, disp)
-    own = path is None
-    if own:
-        fd, path = tempfile.mkstemp(suffix=".out")
-        os.close(fd)
+    return sign * recorded_forces(ops, law, disp.size, path)[:, idx]
+
+
+def command_force(ops, law: str, command: str, disp) -> np.ndarray:
+    """Basic shear force [kN] of the element that the exported openseespy ``command`` builds
+    (``rrfrei.calibration.results.opensees_command``: the user's copy-paste, run as is, its
+    trailing comment dropped), driven along global X by ``disp`` [m] on the one-axis model;
+    asserts that every step converges."""
+    disp = np.asarray(disp, dtype=float)
+    ndm = opensees_ndm(law)
+    bearing_model(ops, ndm, FREE[ndm])
+    eval(command.split("#")[0], {"ops": ops})
+    impose(ops, 1, disp)
+    static_analysis(ops)
+    out = np.full(disp.size, np.nan)
+
+    def read(k):
+        out[k] = ops.eleResponse(1, "basicForce")[1]  # basic shear force
+
+    n_ok, _ = analyze_each(ops, disp.size, read)
+    assert n_ok == disp.size, f"openseespy analysis of the exported {law} failed at sample {n_ok}"
+    return out
+
+
+RTOL = 1e-9
+"""Largest force difference against the OpenSees element, relative to the history's peak |F|."""
+
+
+def rrfrei_force_and_failure(law: str, params: dict, disp) -> tuple[np.ndarray | None, int]:
+    """(forces or None, failing sample or -1) of ``rrfrei.simulate_force`` on the path (one
+    axis (n,) or plan (n, 2))."""
+    import rrfrei
+
     try:
-        ops.recorder("Element", "-file", path, "-precision", 17, "-ele", 1, "force")
-        status = ops.analyze(disp.size)
-        ops.wipe()  # flushes and closes the recorder
-        if status != 0:
-            raise RuntimeError(f"OpenSees analysis of {law} failed (status {status})")
-        data = np.loadtxt(path, ndmin=2)
-    finally:
-        if own:
-            os.unlink(path)
-    return sign * data[-disp.size:, idx]
+        return rrfrei.simulate_force(law, params, disp), -1
+    except ValueError as exc:
+        m = re.search(r"failed at sample (\d+)", str(exc))
+        assert m, str(exc)
+        return None, int(m.group(1))
+
+
+def check_against_opensees(ops, law: str, params: dict, disp, rtol: float = RTOL, *,
+                           peer=element_force) -> None:
+    """The law fails at the sample where the OpenSees element's local solve first fails, or
+    neither fails and the forces agree to ``rtol`` of the peak |F|, up to the first sample at
+    which OpenSees' Bouc-Wen state lands on a spurious root (:func:`spurious_cut`).
+
+    ``peer(ops, law, params, disp) -> (force, n_ok, first_local_failure)`` drives the element:
+    :func:`element_force` along one axis, ``tests.opensees_plan.element_force_and_failure``
+    in plan."""
+    disp = np.asarray(disp, dtype=float)
+    f_os, n_ok, fail_os = peer(ops, law, params, disp)
+    j = spurious_cut(law, params, disp, f_os, fail_os,
+                     lambda d: rrfrei_force_and_failure(law, params, d))
+    if j is not None:  # compare the samples before it
+        if j == 0:
+            return
+        disp = disp[:j]
+        f_os, n_ok, fail_os = peer(ops, law, params, disp)
+    f, fail = rrfrei_force_and_failure(law, params, disp)
+    assert fail == fail_os, f"local failure at sample {fail} here, {fail_os} in OpenSees"
+    if fail < 0:
+        assert n_ok == len(disp)
+        scale = np.max(np.abs(f_os))
+        if scale == 0.0:
+            assert np.all(f == 0.0)
+        else:
+            err = np.max(np.abs(f - f_os))
+            assert err <= rtol * scale + z_floor(law, params), \
+                f"max error {err:.3e} kN, peak force {scale:.3e} kN"

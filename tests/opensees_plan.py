@@ -14,15 +14,24 @@ components 6 and 7).  Law parameters are the rrfrei ones (kN, m).
 
 from __future__ import annotations
 
-import os
-import tempfile
+from functools import partial
 
 import numpy as np
 
 from rrfrei.laws import plan
-from tests.opensees_harness import AXIAL_K, _CaptureStderr, spurious_cut, z_floor
+from tests import opensees_harness as harness
+from tests.opensees_harness import (
+    RTOL,  # noqa: F401  (the plan tests' tolerance, the harness's)
+    _CaptureStderr,  # noqa: F401  (re-exported for the plan tests)
+    analyze_each,
+    bearing_model,
+    impose,
+    recorded_forces,
+    rrfrei_force_and_failure,  # noqa: F401  (re-exported for the plan tests)
+    static_analysis,
+)
 
-ORIENT = [0, 0, 1, 1, 0, 0]
+ORIENT = harness.ORIENT[3]
 PLAN_LAWS = tuple(n for n in plan.names() if plan.get(n).opensees_element)
 
 
@@ -36,28 +45,11 @@ def _plan_element_args(law: str, p: dict) -> list:
 
 
 def _build(ops, law: str, params: dict, disp: np.ndarray) -> None:
-    ops.wipe()
-    ops.model("basic", "-ndm", 3, "-ndf", 6)
-    ops.node(1, 0.0, 0.0, 0.0)
-    ops.node(2, 0.0, 0.0, 0.0)
-    ops.fix(1, 1, 1, 1, 1, 1, 1)
-    ops.fix(2, 0, 0, 0, 1, 1, 1)
-    for tag in (1, 2, 3, 4):
-        ops.uniaxialMaterial("Elastic", tag, AXIAL_K)
+    bearing_model(ops, 3, (1, 2, 3))
     ops.element(*_plan_element_args(law, params))
     for a in (0, 1):
-        col = np.asarray(disp[:, a], dtype=float)
-        values = [0.0, *col.tolist(), float(col[-1])]
-        ops.timeSeries("Path", a + 1, "-dt", 1.0, "-values", *values)
-        ops.pattern("Plain", a + 1, a + 1)
-        ops.sp(2, a + 1, 1.0)
-    ops.constraints("Transformation")
-    ops.numberer("Plain")
-    ops.system("BandGeneral")
-    ops.test("NormDispIncr", 1e-12, 100)
-    ops.algorithm("Newton")
-    ops.integrator("LoadControl", 1.0)
-    ops.analysis("Static")
+        impose(ops, a + 1, disp[:, a])
+    static_analysis(ops)
 
 
 def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int]:
@@ -73,34 +65,20 @@ def element_force(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int]:
 
 def element_force_and_failure(ops, law: str, params: dict, disp) -> tuple[np.ndarray, int, int]:
     """:func:`element_force` plus the first sample at which the element's ``update()`` reported
-    a failed local Newton solve (its WARNING on opserr), or -1.
-
-    openseespy 3.7.1.2 does not stop the analysis on such a failure (the next ``update()`` of
-    the same step continues the local Newton from the stuck trial z), so the forces after it
-    are not comparable; the failure sample is (as in :func:`tests.opensees_harness.element_force`).
-    """
+    a failed local Newton solve (its WARNING on opserr), or -1
+    (:func:`tests.opensees_harness.analyze_each`)."""
     disp = np.asarray(disp, dtype=float)
     if disp.ndim != 2 or disp.shape[1] != 2:
         raise ValueError(f"disp must be (n, 2), got {disp.shape}")
     _build(ops, law, params, disp)
     out = np.full(disp.shape, np.nan)
-    n_ok = disp.shape[0]
-    first_fail = -1
-    with _CaptureStderr() as cap:
-        seen = 0
-        for k in range(disp.shape[0]):
-            status = ops.analyze(1)
-            text = cap.text()
-            if first_fail < 0 and len(text) > seen and "update()" in text[seen:]:
-                first_fail = k
-            seen = len(text)
-            if status != 0:
-                n_ok = k
-                break
-            r = ops.eleResponse(1, "force")
-            out[k, 0] = r[6]
-            out[k, 1] = r[7]
-        ops.wipe()
+
+    def read(k):
+        r = ops.eleResponse(1, "force")
+        out[k, 0] = r[6]
+        out[k, 1] = r[7]
+
+    n_ok, first_fail = analyze_each(ops, disp.shape[0], read)
     return out, n_ok, first_fail
 
 
@@ -110,61 +88,9 @@ def element_force_recorder(ops, law: str, params: dict, disp, path: str | None =
     """
     disp = np.asarray(disp, dtype=float)
     _build(ops, law, params, disp)
-    own = path is None
-    if own:
-        fd, path = tempfile.mkstemp(suffix=".out")
-        os.close(fd)
-    try:
-        ops.recorder("Element", "-file", path, "-precision", 17, "-ele", 1, "force")
-        status = ops.analyze(disp.shape[0])
-        ops.wipe()  # flushes and closes the recorder
-        if status != 0:
-            raise RuntimeError(f"OpenSees analysis of {law} failed (status {status})")
-        data = np.loadtxt(path, ndmin=2)
-    finally:
-        if own:
-            os.unlink(path)
-    return data[-disp.shape[0]:, 6:8]
+    return recorded_forces(ops, law, disp.shape[0], path)[:, 6:8]
 
 
-RTOL = 1e-9
-"""Largest force difference against the OpenSees element, relative to the history's peak |F|."""
-
-
-def rrfrei_force_and_failure(law: str, params: dict, disp) -> tuple[np.ndarray | None, int]:
-    """(forces (n, 2) or None, failing sample or -1) of ``rrfrei.simulate_force`` on the path."""
-    import re
-
-    import rrfrei
-
-    try:
-        return rrfrei.simulate_force(law, params, disp), -1
-    except ValueError as exc:
-        m = re.search(r"failed at sample (\d+)", str(exc))
-        assert m, str(exc)
-        return None, int(m.group(1))
-
-
-def check_against_opensees(ops, law: str, params: dict, disp, rtol: float = RTOL) -> None:
-    """The law fails at the sample where the OpenSees element's local solve first fails, or
-    neither fails and the forces agree to ``rtol`` of the peak |F|, up to the first sample at
-    which OpenSees' Bouc-Wen state lands on a spurious root (:func:`spurious_cut`)."""
-    f_os, n_ok, fail_os = element_force_and_failure(ops, law, params, disp)
-    j = spurious_cut(law, params, disp, f_os, fail_os,
-                     lambda d: rrfrei_force_and_failure(law, params, d))
-    if j is not None:  # compare the samples before it
-        if j == 0:
-            return
-        disp = disp[:j]
-        f_os, n_ok, fail_os = element_force_and_failure(ops, law, params, disp)
-    f, fail = rrfrei_force_and_failure(law, params, disp)
-    assert fail == fail_os, f"local failure at sample {fail} here, {fail_os} in OpenSees"
-    if fail < 0:
-        assert n_ok == disp.shape[0]
-        scale = np.max(np.abs(f_os))
-        if scale == 0.0:
-            assert np.all(f == 0.0)
-        else:
-            err = np.max(np.abs(f - f_os))
-            assert err <= rtol * scale + z_floor(law, params), \
-                f"max error {err:.3e} kN, peak force {scale:.3e} kN"
+check_against_opensees = partial(harness.check_against_opensees, peer=element_force_and_failure)
+"""The plan form of :func:`tests.opensees_harness.check_against_opensees`: the same contract on
+an (n, 2) path, forces compared on both components."""

@@ -8,11 +8,10 @@ The 3-D counterpart of :mod:`tests.opensees_dynamic` (same analysis settings):
 * the isolator layer as one 3-D bearing element between nodes 1 and 2 with the orientation of
   :mod:`tests.opensees_plan` (``-orient 0 0 1 1 0 0``: local x vertical, local y = global X,
   local z = global Y), its parameters mapped to the prototype by similitude
-  (:func:`tests.opensees_dynamic.prototype_params`): ``elastomericBearingPlasticity`` /
-  ``elastomericBearingBoucWen``, and ``ElastomericX`` / ``HDR`` exactly as the unidirectional peer
-  builds them (:func:`tests.opensees_dynamic._isolator`; vertical DOF fixed); the ``linear``
-  law as a zeroLength element with an elastic material in X and one in Y (``count length_scale
-  k`` each);
+  (:func:`tests.opensees_dynamic.prototype_params`), the element and its arguments the law's
+  own (``LawSpec.opensees``, read by :func:`tests.opensees_harness.element_args`; vertical DOF
+  fixed); the ``linear`` law as a zeroLength element with an elastic material in X and one in
+  Y (``count length_scale k`` each);
 * story springs and dashpots as zeroLength elements with ``uniaxialMaterial Elastic k eta=c`` in
   dirs 1 and 2 (the x stories from ``building``, the y stories from ``building_y``); Rayleigh's
   mass term as zeroLength dashpots to the ground;
@@ -28,38 +27,26 @@ import os
 import tempfile
 
 import numpy as np
-from opensees_dynamic import THREE_D, prototype_params
-from opensees_dynamic import _isolator as _isolator_3d
+from opensees_dynamic import prototype_params
 
-from tests.opensees_harness import _CaptureStderr
-from tests.opensees_plan import ORIENT
+from rrfrei.laws import opensees_laws
+from tests.opensees_harness import _CaptureStderr, bearing_model, element_args, transient_analysis
 
-PLAN_ELEMENT = {"plasticity": "elastomericBearingPlasticity", "bouc_wen": "elastomericBearingBoucWen"}
-LAWS = ("linear", *PLAN_ELEMENT, *THREE_D)
-AXIAL_K = 1.0e6  # kN/m: axial, torsional and rocking materials of the bearing (DOFs fixed anyway)
+LAWS = ("linear", *opensees_laws())
 
 
 def _isolator(ops, law: str, p: dict) -> None:
+    """The isolator layer between nodes 1 and 2: the law's 3-D OpenSees element from its spec
+    (``LawSpec.opensees``, :func:`tests.opensees_harness.element_args`; material tags 1-4 of
+    :func:`tests.opensees_harness.bearing_model` for the elements that take them), or for
+    ``linear`` a zeroLength element with one elastic material in X and Y."""
     if law == "linear":
         if p.get("c", 0.0) != 0.0:
             raise ValueError("the linear isolator's dashpot c is not mapped (its tangent differs)")
         ops.uniaxialMaterial("Elastic", 5, p["k"])
         ops.element("zeroLength", 1, 1, 2, "-mat", 5, 5, "-dir", 1, 2)
         return
-    if law in THREE_D:  # already 3-D elements, with this orientation, in the 1-D peer
-        _isolator_3d(ops, law, p)
-        return
-    for tag in (1, 2, 3, 4):
-        ops.uniaxialMaterial("Elastic", tag, AXIAL_K)
-    common = ["-P", 1, "-T", 2, "-My", 3, "-Mz", 4, "-orient", *ORIENT]
-    if law == "plasticity":
-        ops.element(PLAN_ELEMENT[law], 1, 1, 2, p["k_init"], p["qd"], p["alpha1"], p["alpha2"], p["mu"],
-                    *common)
-    elif law == "bouc_wen":
-        ops.element(PLAN_ELEMENT[law], 1, 1, 2, p["k_init"], p["qd"], p["alpha1"], p["alpha2"], p["mu"],
-                    p["eta"], p["beta"], p["gamma"], *common)
-    else:
-        raise ValueError(f"no OpenSees 3-D element for law {law!r}")
+    ops.element(*element_args(law, p, 3))
 
 
 def _prototype(law: str, p: dict, count: int, s: float) -> dict:
@@ -80,14 +67,7 @@ def build(ops, building, ag: np.ndarray, dt: float, *, building_y=None, tol: flo
     masses = [building.base_mass, *building.story_masses]
     damping = [b.damping_coefficients() for b in (building, by)]
     stiffness = [building.story_stiffness, by.story_stiffness]
-    ops.wipe()
-    ops.model("basic", "-ndm", 3, "-ndf", 6)
-    ops.node(1, 0.0, 0.0, 0.0)
-    ops.fix(1, 1, 1, 1, 1, 1, 1)
-    for j in range(n + 1):
-        ops.node(j + 2, 0.0, 0.0, 0.0)
-        ops.fix(j + 2, 0, 0, 1, 1, 1, 1)
-        ops.mass(j + 2, masses[j], masses[j], 0.0, 0.0, 0.0, 0.0)
+    bearing_model(ops, 3, (1, 2), masses)  # X and Y free, mass in both
     _isolator(ops, law, p)
     for i in range(n):  # story i+1 joins node i+2 (below) and node i+3
         tags = []
@@ -106,13 +86,7 @@ def build(ops, building, ag: np.ndarray, dt: float, *, building_y=None, tol: flo
     for d in (0, 1):
         ops.timeSeries("Path", d + 1, "-dt", dt, "-values", *ag[:, d].tolist(), float(ag[-1, d]))
         ops.pattern("UniformExcitation", d + 1, d + 1, "-accel", d + 1)
-    ops.constraints("Plain")
-    ops.numberer("Plain")
-    ops.system("BandGeneral")
-    ops.test("NormDispIncr", tol, max_iter)
-    ops.algorithm("Newton")
-    ops.integrator("Newmark", gamma, beta)
-    ops.analysis("Transient")
+    transient_analysis(ops, tol=tol, max_iter=max_iter, gamma=gamma, beta=beta)
     return n + 2
 
 

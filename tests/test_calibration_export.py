@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from opensees_harness import command_force
 
 from rrfrei.calibration.results import opensees_command
 from rrfrei.laws import OPENSEES_LAWS, get
@@ -25,43 +26,6 @@ PARAMS = {
 }
 
 
-def _drive_exported(ops, law: str, command: str, disp: np.ndarray) -> np.ndarray:
-    ops.wipe()
-    three_d = law in ("elastomeric_x", "hdr")
-    if three_d:
-        ops.model("basic", "-ndm", 3, "-ndf", 6)
-        ops.node(1, 0.0, 0.0, 0.0)
-        ops.node(2, 0.0, 0.0, 0.0)
-        ops.fix(1, 1, 1, 1, 1, 1, 1)
-        ops.fix(2, 0, 1, 0, 1, 1, 1)
-    else:
-        ops.model("basic", "-ndm", 2, "-ndf", 3)
-        ops.node(1, 0.0, 0.0)
-        ops.node(2, 0.0, 0.0)
-        ops.fix(1, 1, 1, 1)
-        ops.fix(2, 0, 0, 1)
-        ops.uniaxialMaterial("Elastic", 1, 1e6)
-        ops.uniaxialMaterial("Elastic", 2, 1e6)
-    eval(command.split("  #")[0], {"ops": ops})  # the user's copy-paste
-    values = [0.0, *disp.tolist(), float(disp[-1])]
-    ops.timeSeries("Path", 1, "-dt", 1.0, "-values", *values)
-    ops.pattern("Plain", 1, 1)
-    ops.sp(2, 1, 1.0)
-    ops.constraints("Transformation")
-    ops.numberer("Plain")
-    ops.system("BandGeneral")
-    ops.test("NormDispIncr", 1e-12, 100)
-    ops.algorithm("Newton")
-    ops.integrator("LoadControl", 1.0)
-    ops.analysis("Static")
-    out = np.empty(disp.size)
-    for k in range(disp.size):
-        assert ops.analyze(1) == 0, f"openseespy analysis of the exported {law} failed at {k}"
-        out[k] = ops.eleResponse(1, "basicForce")[1]  # basic shear force
-    ops.wipe()
-    return out
-
-
 @pytest.mark.opensees
 @pytest.mark.parametrize("law", OPENSEES_LAWS)
 def test_exported_command_runs_in_openseespy_and_reproduces_the_law(ops, law):
@@ -70,7 +34,7 @@ def test_exported_command_runs_in_openseespy_and_reproduces_the_law(ops, law):
     params = PARAMS[law]
     command = opensees_command(get(law), params)
     assert "e+" in command or "." in command  # floats, at full precision (repr)
-    theirs = _drive_exported(ops, law, command, u)
+    theirs = command_force(ops, law, command, u)
     ours = simulate_force(law, params, u)
     np.testing.assert_allclose(theirs, ours, rtol=1e-9, atol=1e-9 * np.max(np.abs(ours)))
 

@@ -29,29 +29,28 @@ COMMAND_NAMES = tuple(c.replace("_", "-") for c in COMMANDS)
 RUBBER_COMMANDS = ("fit", "predict", "cases")
 
 
-def _files(root: Path) -> dict[str, Path]:
-    """Bad inputs a user could hand over."""
-    root.mkdir(parents=True, exist_ok=True)
-    malformed = root / "malformed.csv"
-    malformed.write_text("time_s,disp_mm,force_kN\n0.0,0.0,0.0\n0.05,abc,1.0\n0.10,0.2,\n")
-    garbage_nc = root / "posterior.nc"
-    garbage_nc.write_text("this is not a netCDF file\n")
-    bad_toml = root / "building.toml"
-    bad_toml.write_text("story_masses = [1.0, \n")
-    rubber_bad = root / "rubber_bad.csv"
-    rubber_bad.write_text("time_s,stretch,stress_MPa\n0,1.0,0\n1,nan,0.1\n")
-    rubber_ok = root / "rubber_ok.csv"
-    rubber_ok.write_text("time_s,stretch,stress_MPa\n0,1.0,0\n1,1.1,0.1\n2,1.2,0.2\n3,1.1,0.05\n")
-    params_bad = root / "params.json"
-    params_bad.write_text("{not json")
+BAD_FILES = {
+    "malformed.csv": "time_s,disp_mm,force_kN\n0.0,0.0,0.0\n0.05,abc,1.0\n0.10,0.2,\n",
+    "posterior.nc": "this is not a netCDF file\n",
+    "building.toml": "story_masses = [1.0, \n",
+    "rubber_bad.csv": "time_s,stretch,stress_MPa\n0,1.0,0\n1,nan,0.1\n",
+    "rubber_ok.csv": "time_s,stretch,stress_MPa\n0,1.0,0\n1,1.1,0.1\n2,1.2,0.2\n3,1.1,0.05\n",
+    "params.json": "{not json",
+}
+"""Inputs a user could hand over (all bad but ``rubber_ok.csv``), by file name."""
+
+
+def _files(root: Path, write: bool = True) -> dict[str, Path]:
+    """:data:`BAD_FILES` below ``root`` (keyed by stem; written unless ``write`` is False), and
+    paths that do not exist."""
+    files = {Path(name).stem: root / name for name in BAD_FILES}
+    if write:
+        root.mkdir(parents=True, exist_ok=True)
+        for name, text in BAD_FILES.items():
+            (root / name).write_text(text)
     return {
+        **files,
         "missing": root / "no_such_dir" / "p1.csv",
-        "malformed": malformed,
-        "nc": garbage_nc,
-        "toml": bad_toml,
-        "rubber_bad": rubber_bad,
-        "rubber_ok": rubber_ok,
-        "params_bad": params_bad,
         "out": root / "out",
         "p1": root / "protocol1.csv",
     }
@@ -59,8 +58,9 @@ def _files(root: Path) -> dict[str, Path]:
 
 def _cases(f: dict[str, Path]) -> dict[str, tuple[list[str], str]]:
     """case id -> (argv, a word the one-line error must contain) for user errors (exit 2)."""
-    out, missing, malformed, nc, toml = (str(f[k]) for k in ("out", "missing", "malformed", "nc", "toml"))
-    rubber_bad, rubber_ok, params_bad = str(f["rubber_bad"]), str(f["rubber_ok"]), str(f["params_bad"])
+    out, missing, malformed, nc, toml = (str(f[k]) for k in ("out", "missing", "malformed", "posterior",
+                                                             "building"))
+    rubber_bad, rubber_ok, params_bad = str(f["rubber_bad"]), str(f["rubber_ok"]), str(f["params"])
     p1 = str(f["p1"])  # a valid test: only the argument under test is wrong
     c = {
         # calibrate
@@ -149,11 +149,7 @@ def test_every_command_help_shows_an_example(runs, name):
 
 def _dummy() -> dict[str, Path]:
     """Paths with the real file names (the ids and expected words do not depend on the folder)."""
-    names = {"missing": "no_such_dir/p1.csv", "malformed": "malformed.csv", "nc": "posterior.nc",
-             "toml": "building.toml", "rubber_bad": "rubber_bad.csv", "rubber_ok": "rubber_ok.csv",
-             "params_bad": "params.json",
-             "out": "out", "p1": "protocol1.csv"}
-    return {k: Path("/nonexistent") / v for k, v in names.items()}
+    return _files(Path("/nonexistent"), write=False)
 
 
 def _error_ids() -> list[str]:

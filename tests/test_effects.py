@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from _tangent import assert_tangent_is_the_derivative
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -64,22 +65,10 @@ def test_dissipative_effects_dissipate_nonnegative_energy_in_every_cycle(name, s
 def test_tangent_is_the_derivative_of_the_force_within_a_step(name, values):
     """dF/du from the kernel equals a central difference of F about the trial point."""
     spec = get(f"plasticity+{name}")
-    p = spec.pack({**PL, **values})
-    sc = np.array(spec.initial_state, dtype=float)
-    stt = sc.copy()
     # commit a history first (loading to 25 mm, back to 5 mm) so history variables are active
     path = np.concatenate([np.linspace(0, 0.025, 60), np.linspace(0.025, 0.005, 40)])
-    for u in path:
-        spec.step(p, sc, u, 0.0, 1.0, stt)
-        sc[:] = stt
-    dt, u0 = 0.05, 0.006
-    for u in (u0, 0.0265):
-        v = (u - path[-1]) / dt
-        f, k, _ = spec.step(p, sc, u, v, dt, stt.copy())
-        h = 1e-7
-        fp, _, _ = spec.step(p, sc, u + h, (u + h - path[-1]) / dt, dt, stt.copy())
-        fm, _, _ = spec.step(p, sc, u - h, (u - h - path[-1]) / dt, dt, stt.copy())
-        assert k == pytest.approx((fp - fm) / (2 * h), rel=1e-4, abs=1e-6)
+    assert_tangent_is_the_derivative(spec, spec.pack({**PL, **values}), path, (0.006, 0.0265),
+                                     h=1e-7, rel=1e-4)
 
 
 def test_rollover_adds_the_closed_form_hinge_force():

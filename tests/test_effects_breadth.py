@@ -12,7 +12,8 @@ by ``A^m`` (Miner's rule over a Coffin-Manson life).
 
 import numpy as np
 import pytest
-from test_effects_shapes import PL, T1, U1, committed_after
+from _tangent import committed_after
+from test_effects_shapes import PL, T1, U1
 from test_effects_shapes import one_step as _step
 
 from rrfrei import simulate_force

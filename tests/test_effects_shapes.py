@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from _tangent import assert_tangent_is_the_derivative
 
 from rrfrei import simulate_force
 from rrfrei.energy import cycle_metrics, dissipated_energy
@@ -32,17 +33,6 @@ def one_step(name, values, u, v, dt=0.05):
     f, k, status = spec.step(p, sc, u, v, dt, sc.copy())
     assert status == 0
     return f, k
-
-
-def committed_after(spec, p, path):
-    """(committed, trial) state of ``spec`` after the quasi-static displacement ``path`` [m]
-    from its virgin state, every step committed (status asserted 0)."""
-    sc = np.array(spec.initial_state, dtype=float)
-    stt = sc.copy()
-    for u in path:
-        assert spec.step(p, sc, u, 0.0, 1.0, stt)[2] == 0
-        sc[:] = stt
-    return sc, stt
 
 
 def _step_force(name, values, u, v, dt=0.05):
@@ -241,17 +231,9 @@ def _sine_cycles(amp, cycles, n=200):
 ])
 def test_tangent_is_the_derivative_of_the_force_within_a_step(name, values):
     spec = get(f"plasticity+{name}")
-    p = spec.pack({**PL, **values})
     path = np.concatenate([np.linspace(0, 0.025, 60), np.linspace(0.025, 0.002, 40)])
-    sc, stt = committed_after(spec, p, path)
-    dt = 0.05
-    for u in (0.0015, 0.005, 0.007, 0.018, 0.0262, -0.004):
-        v = (u - path[-1]) / dt
-        f, k, _ = spec.step(p, sc, u, v, dt, stt.copy())
-        h = 1e-8
-        fp, _, _ = spec.step(p, sc, u + h, (u + h - path[-1]) / dt, dt, stt.copy())
-        fm, _, _ = spec.step(p, sc, u - h, (u - h - path[-1]) / dt, dt, stt.copy())
-        assert k == pytest.approx((fp - fm) / (2 * h), rel=1e-5, abs=1e-6)
+    assert_tangent_is_the_derivative(spec, spec.pack({**PL, **values}), path,
+                                     (0.0015, 0.005, 0.007, 0.018, 0.0262, -0.004), h=1e-8, rel=1e-5)
 
 
 # --- the slack element -----------------------------------------------------------------------------

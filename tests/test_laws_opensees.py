@@ -6,20 +6,17 @@ hypothesis-generated histories; and where a law's local Newton fails, OpenSees' 
 its failure (``update()`` warning) at the same sample.
 """
 
-import re
-
 import numpy as np
 import pytest
 from _law_strategies import LAW_PARAMS, histories
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from opensees_harness import element_force, element_force_recorder, spurious_cut, z_floor
+from opensees_harness import check_against_opensees, element_force, element_force_recorder
 
 import rrfrei
 from rrfrei.protocols import protocol1
 
 pytestmark = pytest.mark.opensees
-RTOL = 1e-9
 
 PROTOCOL_PARAMS = {
     "plasticity": [
@@ -42,42 +39,13 @@ PROTOCOL_PARAMS = {
 }
 
 
-def _ours(law, p, disp):
-    """(force, failing sample or -1)."""
-    try:
-        return rrfrei.simulate_force(law, p, disp), -1
-    except ValueError as exc:
-        m = re.search(r"failed at sample (\d+)", str(exc))
-        assert m, str(exc)
-        return None, int(m.group(1))
-
-
-def _check_against_opensees(ops, law, p, disp):
-    f_os, n_ok, fail_os = element_force(ops, law, p, disp)
-    j = spurious_cut(law, p, disp, f_os, fail_os, lambda d: _ours(law, p, d))
-    if j is not None:  # compare the samples before the spurious root
-        if j == 0:
-            return
-        disp = disp[:j]
-        f_os, n_ok, fail_os = element_force(ops, law, p, disp)
-    f, fail = _ours(law, p, disp)
-    assert fail == fail_os, f"local failure at sample {fail} here, {fail_os} in OpenSees"
-    if fail < 0:
-        assert n_ok == disp.size
-        scale = np.max(np.abs(f_os))
-        if scale == 0.0:
-            assert np.all(f == 0.0)
-        else:
-            assert np.max(np.abs(f - f_os)) <= RTOL * scale + z_floor(law, p)
-
-
 @pytest.mark.parametrize(
     "law, p", [(law, p) for law, ps in PROTOCOL_PARAMS.items() for p in ps],
     ids=lambda x: x if isinstance(x, str) else None,
 )
 def test_protocol1_force_equals_opensees(ops, law, p):
     _, u = protocol1()
-    _check_against_opensees(ops, law, p, u)
+    check_against_opensees(ops, law, p, u)
 
 
 @pytest.mark.parametrize("law", list(LAW_PARAMS))
@@ -97,7 +65,7 @@ def _law_and_params():
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 def test_random_histories_equal_opensees(ops, lp, disp):
     law, p = lp
-    _check_against_opensees(ops, law, p, disp)
+    check_against_opensees(ops, law, p, disp)
 
 
 @pytest.mark.slow
@@ -108,7 +76,7 @@ def test_random_histories_equal_opensees(ops, lp, disp):
 def test_random_histories_equal_opensees_sweep(ops, law, data):
     p = data.draw(LAW_PARAMS[law]())
     disp = data.draw(histories(max_size=300))
-    _check_against_opensees(ops, law, p, disp)
+    check_against_opensees(ops, law, p, disp)
 
 
 def test_bouc_wen_local_newton_failure_matches_opensees_and_names_sample_and_state(ops):

@@ -103,6 +103,7 @@ def test_the_harnesses_build_the_elements_the_specs_declare():
         spec = get(law)
         ndm = 2 if 2 in spec.opensees.dims else 3
         orient = opensees_harness.ORIENT[ndm]
+        assert opensees_harness.opensees_ndm(law) == ndm
         assert opensees_harness._element_args(law, PARAMS[law]) == [
             spec.opensees_element, 1, 1, 2, *spec.opensees_args(PARAMS[law], ndm=ndm, orient=orient)]
         assert opensees_plan._plan_element_args(law, PARAMS[law]) == [
@@ -111,7 +112,8 @@ def test_the_harnesses_build_the_elements_the_specs_declare():
 
 
 @pytest.mark.parametrize("path", ["rrfrei/calibration/results.py", "tests/opensees_harness.py",
-                                  "tests/opensees_plan.py"])
+                                  "tests/opensees_plan.py", "tests/opensees_dynamic.py",
+                                  "tests/opensees_plan_building.py"])
 def test_no_reader_of_the_spec_spells_an_element_name(path):
     """The element names are string constants in the law modules only (one place per law)."""
     names = {get(law).opensees_element for law in opensees_laws()}

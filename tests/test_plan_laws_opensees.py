@@ -21,6 +21,7 @@ from _law_strategies import (
     hdr_params,
     plasticity_params,
 )
+from _tiers import Tier, run_examples, tiers
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from opensees_harness import spurious_cut
@@ -142,28 +143,14 @@ def test_recorder_fast_path_equals_step_by_step_harness(ops, law):
                                rtol=1e-15, atol=0)
 
 
+@pytest.mark.parametrize("tier", tiers(Tier(40), Tier(150, max_size=300)))
 @pytest.mark.parametrize("path", list(PATHS))
 @pytest.mark.parametrize("law", LAW_PARAMS)
-@given(data=st.data())
-@settings(max_examples=40, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-def test_random_paths_equal_opensees(ops, law, path, data):
-    p = data.draw(PLAN_PARAMS[law](), label="params")
-    disp = data.draw(PATHS[path](), label="disp")
-    check_against_opensees(ops, law, p, disp)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("path", list(PATHS))
-@pytest.mark.parametrize("law", LAW_PARAMS)
-@given(data=st.data())
-@settings(max_examples=150, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-def test_random_paths_equal_opensees_sweep(ops, law, path, data):
-    p = data.draw(PLAN_PARAMS[law](), label="params")
-    disp = data.draw(PATHS[path]() if path != "random" else plan_histories(max_size=300),
-                     label="disp")
-    check_against_opensees(ops, law, p, disp)
+def test_random_paths_equal_opensees(ops, law, path, tier):
+    """Hypothesis orbits, figure-eights and random histories (up to ``tier.max_size`` samples)."""
+    disp = plan_histories(max_size=tier.max_size) if path == "random" else PATHS[path]()
+    run_examples(tier, lambda p, d: check_against_opensees(ops, law, p, d), p=PLAN_PARAMS[law](),
+                 d=disp)
 
 
 def test_bouc_wen_local_newton_failure_matches_opensees(ops):

@@ -17,6 +17,7 @@ import numpy as np
 import opensees_plan
 import pytest
 from _law_strategies import elastomeric_x_params, hdr_params, histories, logu
+from _tiers import Tier, run_examples, tiers
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from opensees_plan import _build, _CaptureStderr, check_against_opensees, element_force_and_failure
@@ -167,22 +168,12 @@ def test_fixed_paths_equal_opensees(ops, law, path):
 
 
 @pytest.mark.opensees
+@pytest.mark.parametrize("tier", tiers(Tier(60), Tier(500)))
 @pytest.mark.parametrize("kind", list(PATHS))
 @pytest.mark.parametrize("law", LAWS)
-@given(data=st.data())
-@settings(max_examples=60, **SETTINGS)
-def test_hypothesis_paths_equal_opensees(ops, law, kind, data):
-    check_against_opensees(ops, law, data.draw(PARAMS[law]()), data.draw(PATHS[kind]()))
-
-
-@pytest.mark.slow
-@pytest.mark.opensees
-@pytest.mark.parametrize("kind", list(PATHS))
-@pytest.mark.parametrize("law", LAWS)
-@given(data=st.data())
-@settings(max_examples=500, **SETTINGS)
-def test_hypothesis_paths_equal_opensees_sweep(ops, law, kind, data):
-    check_against_opensees(ops, law, data.draw(PARAMS[law]()), data.draw(PATHS[kind]()))
+def test_hypothesis_paths_equal_opensees(ops, law, kind, tier):
+    run_examples(tier, lambda p, d: check_against_opensees(ops, law, p, d), p=PARAMS[law](),
+                 d=PATHS[kind]())
 
 
 @pytest.mark.opensees

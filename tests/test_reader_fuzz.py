@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from _tiers import Tier, run_examples, tiers
 from hypothesis import strategies as st
 
 import ground_motions
@@ -419,23 +419,10 @@ def _fuzz(fmt: Format, blob: bytes, root: Path) -> None:
     read_or_explain(fmt, folder)
 
 
+@pytest.mark.parametrize("tier", tiers(Tier(FAST), Tier(SLOW)))
 @pytest.mark.parametrize("fmt", FORMATS, ids=[f.id for f in FORMATS])
-@settings(deadline=None, max_examples=FAST,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-@given(data=st.data())
-def test_fuzzed_files_are_read_or_refused_with_a_value_error_naming_the_file(tmp_path, fmt, data):
-    blob = data.draw(mutated(_seed(fmt)[fmt.target]), label="file bytes")
-    _fuzz(fmt, blob, tmp_path)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("fmt", FORMATS, ids=[f.id for f in FORMATS])
-@settings(deadline=None, max_examples=SLOW,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-@given(data=st.data())
-def test_many_fuzzed_files_are_read_or_refused_with_a_value_error_naming_the_file(tmp_path, fmt, data):
-    blob = data.draw(mutated(_seed(fmt)[fmt.target]), label="file bytes")
-    _fuzz(fmt, blob, tmp_path)
+def test_fuzzed_files_are_read_or_refused_with_a_value_error_naming_the_file(tmp_path, fmt, tier):
+    run_examples(tier, lambda blob: _fuzz(fmt, blob, tmp_path), blob=mutated(_seed(fmt)[fmt.target]))
 
 
 # ------------------------------------------------------------------------ hand-made cases

@@ -73,7 +73,7 @@ def _expm_coefficients(w, z, dt):
 )
 def test_recurrence_coefficients_equal_the_matrix_exponential_of_the_augmented_system(period, zeta, dt):
     w = 2 * np.pi / period
-    ours = np.array(sp._coefficients(w, zeta, dt))
+    ours = np.array(sp.coefficients(w, zeta, dt))
     ours = ours[[0, 1, 2, 3, 4, 5, 6, 7]]
     ref = _expm_coefficients(w, zeta, dt)
     # one step's response to unit state and unit load: compare row by row on the row's scale

@@ -39,6 +39,15 @@ def bearing_constants(p):
 
 
 @njit(cache=True, inline="always")
+def hardening(k3, mu, x):
+    """``(k3 sgn(x) |x|^mu, k3 mu |x|^(mu-1))``: the nonlinear hardening force [kN] and tangent
+    [kN/m] of an elastomeric bearing at displacement (component) ``x`` [m]; (0, 0) for k3 = 0."""
+    if k3 == 0.0:
+        return 0.0, 0.0
+    return k3 * sgn(x) * powabs(x, mu), k3 * mu * powabs(x, mu - 1.0)
+
+
+@njit(cache=True, inline="always")
 def power_excess(k, onset, n, ex):
     """(force magnitude, tangent) ``(k u_s (e / u_s)^n / n, k (e / u_s)^(n - 1))`` of a power
     ``n`` of the excess ``e = ex > 0`` over an onset ``u_s = onset > 0``: the shape of the

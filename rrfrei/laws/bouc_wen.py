@@ -100,6 +100,23 @@ def _constants(p):
     return k_init, qd, k0, k2, k3, mu, p[5], p[6], p[7]
 
 
+@njit(cache=True, inline="always")
+def _force_tangent(p, u, du, z, pe, st):
+    """Force q = qd z + k2 u + k3 sgn(u) |u|^mu [kN] and tangent k_t = k0 dz/du + k2 +
+    k3 mu |u|^(mu-1) [kN/m] at the solved z (``pe`` = |z|^eta), dz/du = A - |z|^eta (gamma +
+    beta sgn(z du)); stored as ``st[2] = q``, ``st[3] = k_t - k_init`` (module docstring)."""
+    k_init, qd, k0, k2, k3, mu, eta, beta, gamma = _constants(p)
+    dzdu = A - pe * (gamma + beta * sgn(z * du))
+    q = qd * z + k2 * u
+    kt = k0 * dzdu + k2
+    if k3 != 0.0:
+        q += k3 * sgn(u) * powabs(u, mu)
+        kt += k3 * mu * powabs(u, mu - 1.0)
+    st[2] = q
+    st[3] = kt - k_init
+    return q, kt
+
+
 @njit(cache=True, error_model="numpy")
 def step(p, sc, u, v, dt, st):
     """Bouc-Wen bearing shear force [kN], tangent [kN/m] and status (see the module docstring)."""
@@ -151,15 +168,7 @@ def step(p, sc, u, v, dt, st):
     st[4] = pm1
     if it >= MAX_ITER:
         return st[2], st[3] + k_init, -2
-    pe = pm1 * abs(z)  # |z|^eta (0 at z == 0)
-    dzdu = A - pe * (gamma + beta * sgn(z * du))
-    q = qd * z + k2 * u
-    kt = k0 * dzdu + k2
-    if k3 != 0.0:
-        q += k3 * sgn(u) * powabs(u, mu)
-        kt += k3 * mu * powabs(u, mu - 1.0)
-    st[2] = q
-    st[3] = kt - k_init
+    q, kt = _force_tangent(p, u, du, z, pm1 * abs(z), st)  # |z|^eta (0 at z == 0)
     return q, kt, 0
 
 
@@ -209,15 +218,7 @@ def step_robust(p, sc, u, v, dt, st):
         return q, kt, status
     st[1] = z
     st[4] = 0.0
-    pe = abs(z) ** eta
-    dzdu = A - pe * (gamma + beta * sgn(z * du))
-    q = qd * z + k2 * u
-    kt = k0 * dzdu + k2
-    if k3 != 0.0:
-        q += k3 * sgn(u) * powabs(u, mu)
-        kt += k3 * mu * powabs(u, mu - 1.0)
-    st[2] = q
-    st[3] = kt - k_init
+    q, kt = _force_tangent(p, u, du, z, abs(z) ** eta, st)
     return q, kt, STATUS_ROBUST
 
 

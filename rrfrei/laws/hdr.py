@@ -79,37 +79,53 @@ def damage_moduli(ds, dm, ds_c, c1, c2, c3, c4):
     return ks1, ks2, ks2c, em, km
 
 
-@njit(cache=True, error_model="numpy")
-def step(p, sc, u, v, dt, st):
-    """HDR shear force [kN], tangent [kN/m] and status (see the module docstring)."""
+@njit(cache=True, inline="always")
+def shear_terms(p, uh, uhc, ds, dm, ds_c):
+    """The scalar terms of OpenSees' HDR update and tangent at the trial and committed
+    displacement magnitudes ``uh``, ``uhc`` [m] and damage trackers DS, DM (:func:`track_damage`),
+    shared by the 1-D law and the plan law (:mod:`rrfrei.laws.plan.hdr`):
+    ``(ks1, ks2, km, uh^2, R, R_C, poly, dKS1/dDS, dKS2/dDS, dKM/dDM)`` with
+    poly = a1 + a2 uh^2 + a3 uh^4 and the moduli of :func:`damage_moduli` (dKM/dDM with OpenSees'
+    c4 (1 - c4) typo, module docstring)."""
     a1 = p[0]
     a2 = p[1]
     a3 = p[2]
     b1 = p[3]
     b2 = p[4]
-    b3 = p[5]
     c1 = p[6]
     c2 = p[7]
     c3 = p[8]
     c4 = p[9]
-    uc = sc[0]
-    f2c = sc[1]
-    dsp_c = sc[2]
-    dsm_c = sc[3]
-    ds_c = sc[4]
-    dm_c = sc[5]
-    st[0] = u
-    uh = abs(u)
-    uhc = abs(uc)
-    dU = abs(u - uc)
-    n = (u - uc) / dU if dU > DBL_EPSILON else 0.0
-    ds, dm = track_damage(st, 2, uh, uhc, dsp_c, dsm_c, ds_c, dm_c)
     ks1, ks2, ks2c, em, km = damage_moduli(ds, dm, ds_c, c1, c2, c3, c4)
     uh2 = uh * uh
     uh4 = uh2 * uh2
     r = b1 + ks2 * b2 * uh2
     rc = b1 + ks2c * b2 * (uhc * uhc)
     poly = a1 + a2 * uh2 + a3 * uh4
+    dks1_dds = -3.0 * c1 * ds * ds * ks1
+    dks2_dds = -3.0 * c2 * ds * ds * ks2
+    dkm_ddm = -3.0 * c4 * (1.0 - c4) * dm * dm * em  # OpenSees' typo kept (c4 for c3)
+    return ks1, ks2, km, uh2, r, rc, poly, dks1_dds, dks2_dds, dkm_ddm
+
+
+@njit(cache=True, error_model="numpy")
+def step(p, sc, u, v, dt, st):
+    """HDR shear force [kN], tangent [kN/m] and status (see the module docstring)."""
+    a2 = p[1]
+    a3 = p[2]
+    b2 = p[4]
+    b3 = p[5]
+    uc = sc[0]
+    f2c = sc[1]
+    dsm_c = sc[3]
+    st[0] = u
+    uh = abs(u)
+    uhc = abs(uc)
+    dU = abs(u - uc)
+    n = (u - uc) / dU if dU > DBL_EPSILON else 0.0
+    ds, dm = track_damage(st, 2, uh, uhc, sc[2], dsm_c, sc[4], sc[5])
+    ks1, ks2, km, uh2, r, rc, poly, dks1_dds, dks2_dds, dkm_ddm = shear_terms(p, uh, uhc, ds, dm,
+                                                                              sc[4])
     f1 = ks1 * km * poly * u
     fhat = r * n
     delta_c = abs(rc * n - f2c)
@@ -123,9 +139,6 @@ def step(p, sc, u, v, dt, st):
     df1_du = ks1 * km * (poly + 2.0 * (a2 + 2.0 * a3 * uh2) * u * u)
     ds_du = -(1.0 / uh) * u if (uh < dsm_c and uh > DBL_EPSILON) else 0.0
     dm_du = -(1.0 / uh) * u if (uh < uhc and uh > DBL_EPSILON) else 0.0
-    dks1_dds = -3.0 * c1 * ds * ds * ks1
-    dks2_dds = -3.0 * c2 * ds * ds * ks2
-    dkm_ddm = -3.0 * c4 * (1.0 - c4) * dm * dm * em  # OpenSees' typo kept (c4 for c3)
     dr_du = b2 * (2.0 * ks2 * u + uh2 * dks2_dds * ds_du)
     dn_du = (1.0 / dU) * (1.0 - n * n) if dU > DBL_EPSILON else 0.0
     ddelta_du = -1.0 * delta_c * b3 * n / (den * den)

@@ -19,26 +19,17 @@ elastic branch ("sticky" trial variable).
 import numpy as np
 from numba import njit
 
-from rrfrei.laws._util import powabs, sgn
+from rrfrei.laws._util import bearing_constants, hardening, sgn
 from rrfrei.laws.registry import LawSpec, ParamSpec, Prior, elastomeric_bearing, register
 
 
 @njit(cache=True, error_model="numpy")
 def step(p, sc, u, v, dt, st):
-    k_init = p[0]
-    qd = p[1]
-    k0 = (1.0 - p[2]) * k_init
-    k2 = p[2] * k_init
-    k3 = p[3] * k_init
-    mu = p[4]
+    _, qd, k0, k2, k3, mu = bearing_constants(p)
     s0 = sc[0]
     q_tr = k0 * (u - s0)
     y = abs(q_tr) - qd
-    nl_f = 0.0
-    nl_k = 0.0
-    if k3 != 0.0:
-        nl_f = k3 * sgn(u) * powabs(u, mu)
-        nl_k = k3 * mu * powabs(u, mu - 1.0)
+    nl_f, nl_k = hardening(k3, mu, u)
     if y <= 0.0:
         t0 = st[0]
         f = q_tr + k2 * u + nl_f

@@ -429,15 +429,22 @@ class LawSpec:
 
 
 _REGISTRY: dict[str, LawSpec] = {}
-_DISCOVERED = False
+
+
+def add_entry(table: dict, spec, kind: str):
+    """Put ``spec`` into ``table`` under ``spec.name`` and return it; a second, different entry
+    of that name is refused (ValueError naming the ``kind`` of entry: "law", "plan law",
+    "effect").  The ``register`` of every table (laws, plan laws, effects)."""
+    if spec.name in table and table[spec.name] is not spec:
+        article = "an" if kind[0] in "aeiou" else "a"
+        raise ValueError(f"{article} {kind} named {spec.name!r} is already registered")
+    table[spec.name] = spec
+    return spec
 
 
 def register(spec: LawSpec) -> LawSpec:
     """Add a law to the registry (names are unique)."""
-    if spec.name in _REGISTRY and _REGISTRY[spec.name] is not spec:
-        raise ValueError(f"a law named {spec.name!r} is already registered")
-    _REGISTRY[spec.name] = spec
-    return spec
+    return add_entry(_REGISTRY, spec, "law")
 
 
 def import_entries(package: str, path) -> None:
@@ -454,15 +461,23 @@ def import_entries(package: str, path) -> None:
             importlib.import_module(f"{package}.{info.name}")
 
 
+_DISCOVERED: set[str] = set()
+
+
+def discover(package: str) -> None:
+    """Import every module of ``package`` once (:func:`import_entries`), so each registers its
+    entry; the first call does it, later calls (also those made while it imports) return."""
+    if package in _DISCOVERED:
+        return
+    _DISCOVERED.add(package)
+    import importlib
+
+    import_entries(package, importlib.import_module(package).__path__)
+
+
 def _discover() -> None:
     """Import every module of the :mod:`rrfrei.laws` package once, so each registers its law."""
-    global _DISCOVERED
-    if _DISCOVERED:
-        return
-    _DISCOVERED = True
-    import rrfrei.laws as package
-
-    import_entries(package.__name__, package.__path__)
+    discover("rrfrei.laws")
 
 
 def get(name: str | LawSpec) -> LawSpec:

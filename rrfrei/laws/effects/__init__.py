@@ -58,7 +58,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rrfrei.laws.registry import LawSpec, ParamSpec, import_entries
+from rrfrei.laws.registry import LawSpec, ParamSpec, add_entry, import_entries
 
 __all__ = ["DiagnosisHints", "EffectSpec", "Variant", "EFFECTS", "MAX_EFFECTS", "SLIP_NEVER", "compose",
            "register_effect"]
@@ -184,10 +184,7 @@ EFFECTS: dict[str, EffectSpec] = {}
 
 def register_effect(spec: EffectSpec) -> EffectSpec:
     """Add an effect to the table (names are unique)."""
-    if spec.name in EFFECTS and EFFECTS[spec.name] is not spec:
-        raise ValueError(f"an effect named {spec.name!r} is already registered")
-    EFFECTS[spec.name] = spec
-    return spec
+    return add_entry(EFFECTS, spec, "effect")
 
 
 def compose(base: LawSpec, effect_names: list[str]) -> LawSpec:

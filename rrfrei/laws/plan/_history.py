@@ -54,14 +54,10 @@ def drive(p, sc, st, disp, time, use_time, substeps, force, tangent):
 
     Parameters
     ----------
-    p : the law's parameters (kN, m, s).
-    sc, st : committed and trial state, both the initial state on entry; updated in place, so
-        after a failure at sample ``index`` they hold the last committed and the failed trial
-        state.
+    p, sc, st, time, use_time, substeps : as for the unidirectional loop
+        (:func:`rrfrei.laws._history.walk`).
     disp : (n, 2) displacement [m]; ``disp[0]`` is applied to the virgin state as a first step
         from zero, as an OpenSees displacement-controlled analysis starting at rest.
-    time : (n,) time [s], used when ``use_time``; otherwise dt = 1 and velocity 0 (statics).
-    substeps : each increment is split into this many equal sub-increments.
     force : (n, 2) output shear forces [kN].
     tangent : (n, 2, 2) output tangent [kN/m].
 

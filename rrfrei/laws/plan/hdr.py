@@ -64,23 +64,38 @@ import math
 
 from numba import njit
 
-from rrfrei.laws.hdr import DBL_EPSILON, damage_moduli, track_damage
+from rrfrei.laws.hdr import DBL_EPSILON, shear_terms, track_damage
 from rrfrei.laws.plan.registry import PlanLawSpec, register
+
+
+@njit(cache=True, inline="always")
+def _unit(x1, x2):
+    """``(|x|, x / |x|)`` of the 2-vector x = (x1, x2), the direction (0, 0) when |x| <=
+    DBL_EPSILON: n of the increment (|x| = dU) and mu of the gap to the bounding surface."""
+    norm = math.sqrt(x1 * x1 + x2 * x2)
+    if norm > DBL_EPSILON:
+        return norm, x1 / norm, x2 / norm
+    return norm, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def _projector(a1, a2, norm):
+    """(I - a a^T) / norm for a unit 2-vector ``a`` = (a1, a2), as (p11, p12, p21, p22); zeros
+    when norm <= DBL_EPSILON.  The derivative of a normalised vector x / |x| with respect to x
+    (dn/dU with norm dU, dmu/dU with norm |R n - F2_C|)."""
+    if norm > DBL_EPSILON:
+        r = 1.0 / norm
+        return r * (1.0 - a1 * a1), r * (0.0 - a1 * a2), r * (0.0 - a2 * a1), r * (1.0 - a2 * a2)
+    return 0.0, 0.0, 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy")
 def step(p, sc, u, v, dt, st, f, k):
     """HDR shear forces [kN], tangent [kN/m] and status in plan (see the module docstring)."""
-    a1 = p[0]
     a2 = p[1]
     a3 = p[2]
-    b1 = p[3]
     b2 = p[4]
     b3 = p[5]
-    c1 = p[6]
-    c2 = p[7]
-    c3 = p[8]
-    c4 = p[9]
     u1 = u[0]
     u2 = u[1]
     uc1 = sc[0]
@@ -95,35 +110,17 @@ def step(p, sc, u, v, dt, st, f, k):
     st[1] = u2
     uh = math.sqrt(u1 * u1 + u2 * u2)
     uhc = math.sqrt(uc1 * uc1 + uc2 * uc2)
-    e1 = u1 - uc1
-    e2 = u2 - uc2
-    dU = math.sqrt(e1 * e1 + e2 * e2)
-    n1 = 0.0
-    n2 = 0.0
-    if dU > DBL_EPSILON:
-        n1 = e1 / dU
-        n2 = e2 / dU
+    dU, n1, n2 = _unit(u1 - uc1, u2 - uc2)
     ds, dm = track_damage(st, 4, uh, uhc, dsp_c, dsm_c, ds_c, dm_c)
-    ks1, ks2, ks2c, em, km = damage_moduli(ds, dm, ds_c, c1, c2, c3, c4)
-    uh2 = uh * uh
-    uh4 = uh2 * uh2
-    r = b1 + ks2 * b2 * uh2
-    rc = b1 + ks2c * b2 * (uhc * uhc)
-    poly = a1 + a2 * uh2 + a3 * uh4
+    ks1, ks2, km, uh2, r, rc, poly, dks1_dds, dks2_dds, dkm_ddm = shear_terms(p, uh, uhc, ds, dm,
+                                                                              ds_c)
     s1 = ks1 * km * poly
     g1 = rc * n1 - f2c1
     g2 = rc * n2 - f2c2
     delta_c = math.sqrt(g1 * g1 + g2 * g2)
     den = 1.0 + b3 * dU
     delta = delta_c / den
-    h1 = r * n1 - f2c1
-    h2 = r * n2 - f2c2
-    fnorm = math.sqrt(h1 * h1 + h2 * h2)
-    mu1 = 0.0
-    mu2 = 0.0
-    if fnorm > DBL_EPSILON:
-        mu1 = h1 / fnorm
-        mu2 = h2 / fnorm
+    fnorm, mu1, mu2 = _unit(r * n1 - f2c1, r * n2 - f2c2)
     f21 = r * n1 - delta * mu1
     f22 = r * n2 - delta * mu2
     st[2] = f21
@@ -143,21 +140,9 @@ def step(p, sc, u, v, dt, st, f, k):
     if uh < uhc and uh > DBL_EPSILON:
         ddm1 = -(1.0 / uh) * u1
         ddm2 = -(1.0 / uh) * u2
-    dks1_dds = -3.0 * c1 * ds * ds * ks1
-    dks2_dds = -3.0 * c2 * ds * ds * ks2
-    dkm_ddm = -3.0 * c4 * (1.0 - c4) * dm * dm * em  # OpenSees' typo kept (c4 for c3)
     dr1 = b2 * (2.0 * ks2 * u1 + uh2 * dks2_dds * dds1)
     dr2 = b2 * (2.0 * ks2 * u2 + uh2 * dks2_dds * dds2)
-    dn11 = 0.0
-    dn12 = 0.0
-    dn21 = 0.0
-    dn22 = 0.0
-    if dU > DBL_EPSILON:
-        rdu = 1.0 / dU
-        dn11 = rdu * (1.0 - n1 * n1)
-        dn12 = rdu * (0.0 - n1 * n2)
-        dn21 = rdu * (0.0 - n2 * n1)
-        dn22 = rdu * (1.0 - n2 * n2)
+    dn11, dn12, dn21, dn22 = _projector(n1, n2, dU)
     dd1 = -1.0 * delta_c * b3 * n1 / (den * den)
     dd2 = -1.0 * delta_c * b3 * n2 / (den * den)
     fh11 = n1 * dr1 + r * dn11
@@ -169,11 +154,7 @@ def step(p, sc, u, v, dt, st, f, k):
     dmu21 = 0.0
     dmu22 = 0.0
     if fnorm > DBL_EPSILON:
-        rf = 1.0 / fnorm
-        p11 = rf * (1.0 - mu1 * mu1)
-        p12 = rf * (0.0 - mu1 * mu2)
-        p21 = rf * (0.0 - mu2 * mu1)
-        p22 = rf * (1.0 - mu2 * mu2)
+        p11, p12, p21, p22 = _projector(mu1, mu2, fnorm)
         dmu11 = p11 * fh11 + p12 * fh21
         dmu12 = p11 * fh12 + p12 * fh22
         dmu21 = p21 * fh11 + p22 * fh21

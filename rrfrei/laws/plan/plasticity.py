@@ -40,28 +40,15 @@ import math
 
 from numba import njit
 
-from rrfrei.laws._util import powabs, sgn, store_plan
+from rrfrei.laws._util import bearing_constants, hardening, store_plan
 from rrfrei.laws.plan.registry import PlanLawSpec, register
-
-
-@njit(cache=True, inline="always")
-def _hardening(k3, mu, x):
-    """(k3 sgn(x) |x|^mu, k3 mu |x|^(mu-1)): one component's nonlinear hardening [kN, kN/m]."""
-    if k3 == 0.0:
-        return 0.0, 0.0
-    return k3 * sgn(x) * powabs(x, mu), k3 * mu * powabs(x, mu - 1.0)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def step(p, sc, u, v, dt, st, f, k):
     """Plan plasticity step (module docstring): forces ``f`` [kN], tangent ``k`` [kN/m],
     trial plastic displacement ``st`` [m]; status 0 (the return mapping cannot fail)."""
-    k_init = p[0]
-    qd = p[1]
-    k0 = (1.0 - p[2]) * k_init
-    k2 = p[2] * k_init
-    k3 = p[3] * k_init
-    mu = p[4]
+    _, qd, k0, k2, k3, mu = bearing_constants(p)
     u0 = u[0]
     u1 = u[1]
     s0 = sc[0]
@@ -70,8 +57,8 @@ def step(p, sc, u, v, dt, st, f, k):
     q1 = k0 * (u1 - s1)
     nrm = math.sqrt(q0 * q0 + q1 * q1)  # OpenSees Vector::Norm
     y = nrm - qd
-    h0, g0 = _hardening(k3, mu, u0)
-    h1, g1 = _hardening(k3, mu, u1)
+    h0, g0 = hardening(k3, mu, u0)
+    h1, g1 = hardening(k3, mu, u1)
     if y <= 0.0:
         f0 = q0 + k2 * u0 + h0
         f1 = q1 + k2 * u1 + h1

@@ -127,25 +127,15 @@ class PlanLawSpec:
 
 
 _REGISTRY: dict[str, PlanLawSpec] = {}
-_DISCOVERED = False
 
 
 def register(spec: PlanLawSpec) -> PlanLawSpec:
     """Add a plan law to the registry (one per unidirectional law name)."""
-    if spec.name in _REGISTRY and _REGISTRY[spec.name] is not spec:
-        raise ValueError(f"a plan law named {spec.name!r} is already registered")
-    _REGISTRY[spec.name] = spec
-    return spec
+    return _laws.add_entry(_REGISTRY, spec, "plan law")
 
 
 def _discover() -> None:
-    global _DISCOVERED
-    if _DISCOVERED:
-        return
-    _DISCOVERED = True
-    import rrfrei.laws.plan as package
-
-    _laws.import_entries(package.__name__, package.__path__)
+    _laws.discover("rrfrei.laws.plan")
 
 
 def names() -> tuple[str, ...]:
