@@ -38,7 +38,7 @@ def test_the_protocols_give_the_block_rule_enough_blocks():
     assert np.unique(m.groups(ho)).size >= min_blocks()
 
 
-def test_a_fit_carries_importance_corrected_laplace_draws_and_scores_each_one():
+def test_a_fit_carries_importance_corrected_laplace_draws_and_scores_each_one(monkeypatch):
     cal, ho = synthetic("mullins")
     fit = local_model().fit(cal)
     assert len(fit.draws) == DRAWS and 1.0 <= fit.ess <= DRAWS
@@ -53,6 +53,19 @@ def test_a_fit_carries_importance_corrected_laplace_draws_and_scores_each_one():
     # the round trip of the start through the search's unit coordinates)
     again = local_model().fit(cal, start=[fit])
     assert again.name == fit.name and again.rss <= 1.01 * fit.rss
+    # a draw the integrator cannot follow is said in the fit's notes (the engine reports them)
+    assert fit.note == ""
+    bad, real = fit.draws[0][0], rubber.gap.model.augmented_stress
+
+    def failing(prf, *args, **kw):
+        if prf is bad:
+            raise FloatingPointError("step size underflow")
+        return real(prf, *args, **kw)
+
+    monkeypatch.setattr(rubber.gap.model, "augmented_stress", failing)
+    failed = fit.failed_draws([cal, ho])
+    assert failed >= 1 and f"{failed} of {DRAWS} Laplace draws failed" in fit.note
+    assert [n.severity for n in fit.notes] == ["warning"]
 
 
 def test_the_one_engine_names_withheld_mullins_damage_on_rubber():

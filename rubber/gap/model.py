@@ -21,6 +21,7 @@ from scipy.stats import norm as _norm
 from rrfrei.errors import NumericalFailure
 from rrfrei.gap.fitting import laplace_cov, laplace_factor
 from rrfrei.gap.model import LEVEL, FitResult, GapModel, Prediction, white_noise
+from rrfrei.notes import Note
 from rubber import integrate as _k
 from rubber.fit import (
     _EVAL_ERRORS,
@@ -79,7 +80,13 @@ class RubberFit(FitResult):
     rtol: float = 1e-6
     draws: tuple = ()  # ((PRFParams, effect params), ...): Laplace draws; () = the optimum only
     ess: float = float("nan")  # importance effective sample size of the draws (of DRAWS)
+    notes: list = field(default_factory=list, compare=False, repr=False)  # rrfrei.notes.Note
     _memo: dict = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def note(self) -> str:
+        """The fit's notes joined (the gap engine reports them with the most severe severity)."""
+        return "; ".join(str(n) for n in self.notes)
 
     @property
     def params(self) -> dict[str, float]:  # type: ignore[override]
@@ -116,6 +123,12 @@ class RubberFit(FitResult):
                     ok = False
                 failed += not ok
                 rows.append(f if ok else f0)
+            if failed:
+                text = (f"PRF model {self.name!r} on {', '.join(t.name for t in tests)}: {failed} of "
+                        f"{len(self.draws)} Laplace draws failed in the integrator; the band uses the "
+                        "optimum's stress in their place")
+                if all(str(n) != text for n in self.notes):
+                    self.notes.append(Note(text, "critical" if 2 * failed > len(self.draws) else "warning"))
             # the tests are kept so that their ids stay theirs
             self._memo[key] = (np.array(rows) if rows else f0[None, :], failed, tests)
         return self._memo[key][0]
