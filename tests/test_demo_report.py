@@ -189,6 +189,23 @@ def test_a_step_run_aside_after_another_reads_the_tests_and_the_best_law_it_chos
     assert reads.endswith("['protocol9'] plasticity") and not reads.startswith(f"pid {os.getpid()}:")
 
 
+def _compile_ahead(ctx):
+    with open(os.environ["RRFREI_TEST_AHEAD"], "w") as f:
+        f.write(str(os.getpid()))
+
+
+def test_the_second_process_first_does_the_work_ahead_of_a_step_that_runs_here(tmp_path, monkeypatch):
+    mark = tmp_path / "ahead.txt"
+    monkeypatch.setenv("RRFREI_TEST_AHEAD", str(mark))
+    monkeypatch.setattr(demo.steps, "AHEAD", {"later": _compile_ahead})
+    result = demo.run_demo(tmp_path / "page", quick=True, progress=False, steps=ASIDE, parallel=True)
+    assert result.ok
+    assert mark.read_text() != str(os.getpid())  # done, and not here
+    mark.unlink()
+    demo.run_demo(tmp_path / "serial", quick=True, progress=False, steps=ASIDE, parallel=False)
+    assert not mark.exists()  # serial: nothing is compiled ahead (the step compiles what it needs)
+
+
 def test_a_bug_in_a_step_run_aside_is_raised_not_written_into_the_page(tmp_path):
     steps = (ASIDE[0], demo.Step("bug", "Bug", _bug, alone=True))
     with pytest.raises(TypeError, match="a bug, not a failure"):

@@ -85,11 +85,21 @@ def _handoff(ctx: DemoContext) -> DemoContext:
     return DemoContext(settings=ctx.settings, progress=False, tests=dict(ctx.tests), best_law=ctx.best_law)
 
 
+def _ahead(work, ctx: DemoContext) -> None:
+    """Run ``work(ctx)`` ahead of a step (compiling its kernels); a failure on valid input is left
+    to the step itself to meet and show."""
+    try:
+        work(ctx)
+    except EXPECTED_FAILURES:
+        pass
+
+
 def _run_steps(steps: Sequence[Step], ctx: DemoContext, aside: set[str],
                progress: bool) -> dict[str, Section]:
     """Run ``steps``: those in ``aside`` in one second (spawned) process, in the order they become
     ready (at once, or when the step they come ``after`` has finished here), the others here in
-    page order.  Returns the sections by key."""
+    page order.  The second process first does the work :data:`~rrfrei.app.demo.steps.AHEAD`
+    lists for the steps that run here.  Returns the sections by key."""
     sections: dict[str, Section] = {}
     pending: dict[str, Future] = {}
     here = [s for s in steps if s.key not in aside]
@@ -109,8 +119,11 @@ def _run_steps(steps: Sequence[Step], ctx: DemoContext, aside: set[str],
                 pending[s.key] = pool.submit(run_step, s, _handoff(ctx))
                 waiting.remove(s)
 
+    ahead: list[Future] = []
     try:
         if pool is not None:
+            ahead = [pool.submit(_ahead, _steps.AHEAD[h.key], _handoff(ctx))
+                     for h in here if h.key in _steps.AHEAD]
             submit_ready()
         bar = _steps.tqdm_or_plain(steps, progress, desc="rrfrei demo", unit="step")
         order = iter(bar)
@@ -127,6 +140,8 @@ def _run_steps(steps: Sequence[Step], ctx: DemoContext, aside: set[str],
             if hasattr(bar, "set_postfix_str"):
                 bar.set_postfix_str(key)
             sections[key] = fut.result()  # a bug in a step run aside is raised here, as it would be here
+        for fut in ahead:
+            fut.result()
         for _ in order:
             pass
     finally:
@@ -155,10 +170,11 @@ def run_demo(
     progress : show tqdm progress bars on the long steps.
     settings : explicit step sizes (overrides ``quick``/``seed``).
     steps : the steps to run (default :data:`rrfrei.app.demo.steps.STEPS`).
-    parallel : run the steps marked ``alone`` in a second process while this one runs the others:
-        at once (the shake-table building, the rubber fits) or once the step they come ``after``
-        has finished here (the gap diagnosis needs the best law of the comparison); the page is
-        the same, in the same order.  None (default): when the machine has at least 2 cores.
+    parallel : use a second process while this one runs the chain of steps: it first compiles the
+        kernels of the propagation step ahead (:data:`~rrfrei.app.demo.steps.AHEAD`), then runs
+        the steps marked ``alone``, at once (the rubber fits) or once the step they come
+        ``after`` has finished here (the gap diagnosis needs the comparison's best law); the page
+        is the same, in the same order.  None (default): when the machine has at least 2 cores.
 
     Returns
     -------
