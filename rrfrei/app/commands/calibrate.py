@@ -8,6 +8,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from rrfrei.app.commands import HELPS
 from rrfrei.app.commands.args import (
     add_command,
     add_json,
@@ -96,7 +97,7 @@ def add_common(p: argparse.ArgumentParser) -> None:
     add_no_progress(p)
 
 
-HELP = "calibrate a law's parameters on a shear test (posterior, checks, figures)"
+HELP = HELPS["calibrate"]
 """One-line help of the command in ``rrfrei --help``."""
 DESCRIPTION = paragraph("""
 Bayesian calibration of an isolator law on a cyclic shear test CSV (columns time_s, disp_mm,
