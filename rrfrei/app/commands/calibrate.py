@@ -30,7 +30,7 @@ from rrfrei.calibration import (
     run_stats,
 )
 from rrfrei.calibration.likelihood import DENSE_POINTS, HALF_CYCLE_POINTS, LIKELIHOOD_POINTS
-from rrfrei.calibration.results import load_arviz
+from rrfrei.calibration.results import arviz_numpy
 from rrfrei.calibration.sampler import CONVERGENCE_RULE, MAX_STEPS
 from rrfrei.io import DISP_UNITS, FORCE_UNITS, bundled_tests, load_test, read_test
 from rrfrei.laws import get
@@ -246,8 +246,7 @@ def run(args: argparse.Namespace) -> int:
         cal.summary.to_csv(out / "summary.csv")
         pred.cycles.to_csv(out / "cycles.csv", index=False)
         pred.asce.to_csv(out / "asce_7_22.csv", index=False)
-        az = load_arviz()
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), arviz_numpy() as az:
             warnings.simplefilter("ignore")
             loo = az.loo(cal.idata, var_name="force")
         hold = {}
