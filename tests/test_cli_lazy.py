@@ -67,3 +67,30 @@ def test_each_command_parses_as_when_every_parser_is_built(module):
     alone = cli.build_parser([module])._subparsers._group_actions[0].choices[name]
     every = cli.build_parser()._subparsers._group_actions[0].choices[name]
     assert alone.format_help() == every.format_help()
+
+
+OMP_PROBE = """
+import os
+import rrfrei.app.cli as cli
+before = os.environ.get("OMP_WAIT_POLICY")
+try:
+    cli.main(["--help"])
+except SystemExit:
+    pass
+print(before, os.environ.get("OMP_WAIT_POLICY"))
+"""
+
+
+@pytest.mark.parametrize("user, expected", [(None, "None PASSIVE"), ("ACTIVE", "ACTIVE ACTIVE")])
+def test_the_command_waits_passively_for_openmp_work_unless_the_user_chose(user, expected):
+    """Spinning OpenMP threads take the CPU from the working one on shared cores (a batched law
+    run 20-30 times slower under load): the command asks for a passive wait, the import alone
+    changes nothing, and a policy the user set is kept."""
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    if user is not None:
+        env["OMP_WAIT_POLICY"] = user
+    run = subprocess.run([sys.executable, "-c", OMP_PROBE], capture_output=True, text=True,
+                         check=True, env=env)
+    assert run.stdout.strip().splitlines()[-1] == expected
