@@ -54,7 +54,7 @@ def run(steps: int, restart: bool, seed: int = 0) -> tuple[np.ndarray, np.ndarra
             lp.append(new.log_prob.copy())
         stuck = stuck_walkers(np.array(lp[-CHECK:]), NDIM)
         if restart and stuck.any():
-            state = restart_walkers(state, stuck, np.random.default_rng([seed, len(chain)]))
+            state = restart_walkers(state, stuck, np.random.default_rng([seed, len(chain)]), log_prob)
             start, restarted = len(chain), restarted + int(stuck.sum())
     return np.array(chain), np.array(lp), start, restarted
 
@@ -94,14 +94,25 @@ def test_when_most_walkers_are_low_none_is_called_stuck():
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_restarted_walkers_take_healthy_walkers_positions_and_log_probabilities(seed):
+def test_restarted_walkers_land_next_to_healthy_walkers_never_onto_one(seed):
+    """Two walkers at one point make the snooker move's proposal 0 / 0 (NaN coordinates)."""
     rng = np.random.default_rng(seed)
     x = rng.standard_normal((8, NDIM))
     state = emcee.State(x, log_prob=log_prob(x))
     stuck = np.zeros(8, dtype=bool)
     stuck[[2, 5]] = True
-    new = restart_walkers(state, stuck, np.random.default_rng(seed))
+    new = restart_walkers(state, stuck, np.random.default_rng(seed), log_prob)
+    spread = np.ptp(x[~stuck], axis=0)
     for w in (2, 5):
-        donor = [d for d in range(8) if not stuck[d] and np.all(new.coords[w] == x[d])]
-        assert donor and new.log_prob[w] == state.log_prob[donor[0]]
-    assert np.all(new.coords[~stuck] == x[~stuck])
+        gap = np.min(np.linalg.norm(x[~stuck] - new.coords[w], axis=1))
+        assert 0 < gap <= 0.02 * np.linalg.norm(spread)  # next to a healthy walker, not on it
+        assert new.log_prob[w] == log_prob(new.coords[w][None, :])[0]
+    assert np.all(new.coords[~stuck] == x[~stuck]) and np.all(new.log_prob[~stuck] == state.log_prob[~stuck])
+    assert len({tuple(c) for c in new.coords}) == 8
+
+
+def test_a_run_with_a_restart_never_proposes_nan():
+    """The production move mixture keeps going after restarts (it raised on NaN coordinates when
+    a restarted walker sat exactly on its donor)."""
+    chain, lp, start, restarted = run(400, restart=True, seed=SEED)
+    assert restarted >= 1 and np.all(np.isfinite(chain)) and np.all(np.isfinite(lp))

@@ -122,13 +122,33 @@ def stuck_walkers(recent_logp: np.ndarray, ndim: int) -> np.ndarray:
     return stuck if 2 * int(stuck.sum()) < stuck.size else np.zeros_like(stuck)
 
 
-def restart_walkers(state: emcee.State, stuck: np.ndarray, rng: np.random.Generator) -> emcee.State:
-    """``state`` with each ``stuck`` walker moved to the position (and log probability) of a
-    healthy walker drawn at random by ``rng``."""
+def restart_walkers(state: emcee.State, stuck: np.ndarray, rng: np.random.Generator,
+                    log_prob) -> emcee.State:
+    """``state`` with each ``stuck`` walker moved next to a healthy walker drawn at random by
+    ``rng``: at ``x_d + s (x_a - x_b)`` (``x_a``, ``x_b`` two other healthy walkers, ``s`` =
+    1e-2, halved until ``log_prob`` (vectorised) is finite there), never onto ``x_d`` itself: two
+    walkers at one point make the snooker move's proposal 0 / 0.  A walker with no finite
+    position near its donor keeps the donor's position and log probability."""
     coords, lp = np.array(state.coords, copy=True), np.array(state.log_prob, copy=True)
     idx = np.flatnonzero(stuck)
-    donors = rng.choice(np.flatnonzero(~stuck), size=idx.size, replace=True)
-    coords[idx], lp[idx] = coords[donors], lp[donors]
+    healthy = np.flatnonzero(~stuck)
+    donors = rng.choice(healthy, size=idx.size, replace=True)
+    pairs = np.array([rng.choice(healthy, size=2, replace=False) for _ in idx]).reshape(-1, 2)
+    step = coords[pairs[:, 0]] - coords[pairs[:, 1]]
+    todo = np.ones(idx.size, dtype=bool)
+    scale = 1e-2
+    for _ in range(20):
+        cand = coords[donors[todo]] + scale * step[todo]
+        new_lp = np.asarray(log_prob(cand), dtype=float)
+        ok = np.isfinite(new_lp)
+        where = np.flatnonzero(todo)[ok]
+        coords[idx[where]], lp[idx[where]] = cand[ok], new_lp[ok]
+        todo[np.flatnonzero(todo)[ok]] = False
+        if not todo.any():
+            break
+        scale *= 0.5
+    left = np.flatnonzero(todo)
+    coords[idx[left]], lp[idx[left]] = coords[donors[left]], lp[donors[left]]
     return emcee.State(coords, log_prob=lp, random_state=state.random_state)
 
 
@@ -250,7 +270,8 @@ def run_chain(
                 previous = chk.tmax
                 stuck = stuck_walkers(store.logp[-CHECK:], ndim)
                 if restarts < MAX_RESTARTS and stuck.any() and store.n - store.restart >= CHECK:
-                    state = restart_walkers(state, stuck, np.random.default_rng([int(seed), store.n]))
+                    state = restart_walkers(state, stuck, np.random.default_rng([int(seed), store.n]),
+                                            log_prob)
                     store.restart = store.n
                     restarts, restarted = restarts + 1, restarted + int(stuck.sum())
                     previous = math.inf  # tau of the chain from the restart on: no previous one
