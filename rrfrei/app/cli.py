@@ -73,12 +73,10 @@ def passive_omp_wait() -> None:
 
     Numba's parallel kernels run on the OpenMP threading layer, whose threads by default spin
     while they wait for work.  When the cores are shared with other processes the spinning
-    threads take the CPU from the working one: on 2 cores with a load of 6, one batched law run
-    of 32 walkers took 27 ms with spinning threads and 15 ms on one thread, a run of one row 13
-    ms and 0.4 ms, and the 2,401-point ``rrfrei calibrate`` 60-70 s instead of 21 s.  A passive
-    wait costs a thread wake-up (microseconds) per parallel call on an idle machine.  OpenMP
-    reads the variable when it starts, at the first parallel kernel call, so the command sets it
-    before it runs (importing the package changes nothing).
+    threads take the CPU from the working one, and a batched law run of one row became tens of
+    times slower than on one thread.  A passive wait costs a thread wake-up per parallel call on
+    an idle machine.  OpenMP reads the variable when it starts, at the first parallel kernel
+    call, so the command sets it before it runs (importing the package changes nothing).
     """
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 

@@ -176,10 +176,9 @@ def find_map(problem: Problem, seed: int = 0, *, max_evals: int | None = None,
 MAX_EVALS_PER_PARAM, MAX_EVALS_BASE = 200, 700
 """CMA-ES evaluations of :func:`find_map` by default: ``200 k + 700`` for k free law parameters,
 over three starts.  CMA-ES brings each start into the optimum's basin; the least-squares polish
-(:func:`_polish_until_stalled`) finds the optimum itself.  On the 2,401-sample bouc_wen test of
-``benchmarks/bench_calibration.py`` (7 parameters), 3 x 2,072 CMA-ES evaluations and one polish
-ended 0.4-2.7 log-units below the optimum; 3 x 700 and polishes run until they stall reach it
-from every start, in half the evaluations."""
+(:func:`_polish_until_stalled`) finds the optimum itself: on the 2,401-sample bouc_wen test of
+``benchmarks/bench_calibration.py`` three times as many CMA-ES evaluations and a single polish
+ended log-units below the optimum that these reach from every start."""
 DIFF_STEP = 1e-7
 """Relative forward-difference step of the polish's Jacobian (unit-cube coordinates)."""
 POLISH_GAIN = 0.01
@@ -193,7 +192,7 @@ def _polish_until_stalled(problem: Problem, cube: _Cube, theta: np.ndarray, lp: 
     (at most ``max_rounds`` rounds).  Why: a trust-region polish started far from the optimum
     stops early, its variable scaling (``x_scale="jac"``) and trust radius set by the start; a
     new polish from its end starts with both fresh (on the 2,401-sample bouc_wen test, one polish
-    from a prior draw ends ~300 log-units below the optimum and a second one reaches it)."""
+    from a prior draw ends hundreds of log-units below the optimum and a second one reaches it)."""
     for _ in range(max_rounds):
         th, new = _polish(problem, cube, theta, lp, budget=budget, progress=progress)
         if not new > lp + POLISH_GAIN:

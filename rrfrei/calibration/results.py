@@ -82,7 +82,7 @@ def arviz_numpy():
     """``arviz`` (:func:`load_arviz`) with its Numba paths off inside the block (restored after).
 
     arviz jits a few helpers of its statistics (the variance in ``rhat`` and ``ess``, a square
-    root in ``mcse``) without a cache, so every process compiles them again: about 2 s, more
+    root in ``mcse``) without a cache, so every process compiles them again, which takes longer
     than the ESS, R-hat and PSIS-LOO of a calibration's draws take with NumPy.  The NumPy paths
     compute the same quantities (``np.var`` in place of a one-pass sum of squares).
     """

@@ -19,10 +19,11 @@
    Stuck walkers (:func:`stuck_walkers`: a mean log posterior over the last :data:`CHECK` steps
    far below the ensemble's median walker's) are restarted at the position of a randomly chosen
    healthy walker, at most :data:`MAX_RESTARTS` times, and the chain before the restart is never
-   kept (:func:`check`'s ``start``).  Why: on the CLT record SPC1, seeds 2 and 3 left one or two
-   of 32 walkers for thousands of steps 20-36 log-units below the others, far out in the
-   ``k_init`` tail (a differential-evolution proposal is as large as the other walkers' spread,
-   far too small to bring one back), and R-hat stayed at 1.1-1.2 until the time budget ran out.
+   kept (:func:`check`'s ``start``).  Why: on the CLT record SPC1 one or two of 32 walkers could
+   stay for thousands of steps tens of log-units below the others, far out in the ``k_init``
+   tail (a differential-evolution proposal is as large as the other walkers' spread, far too
+   small to bring one back along the ridge), and R-hat stayed above the rule's limit until the
+   time budget ran out.
    The stopping rule and the final check of :func:`rrfrei.calibrate` are one function on the same
    draws, so a run stopped as converged is converged (a rule on the whole chain with a separate
    check on the stored draws stopped runs that then failed the check).  The tau conditions keep a
