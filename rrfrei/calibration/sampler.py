@@ -276,6 +276,7 @@ def run_chain(
                     store.restart = store.n
                     restarts, restarted = restarts + 1, restarted + int(stuck.sum())
                     previous = math.inf  # tau of the chain from the restart on: no previous one
+                    chk = None  # checked the chain before the restart: not the final check
                     continue
                 if math.isfinite(chk.tmax):
                     need = chk.burn + MIN_TAU * chk.tmax
