@@ -281,6 +281,7 @@ def run(args: argparse.Namespace) -> int:
         "likelihood_points": int(d["likelihood_points"]),
         "points": int(d["points"]), "stored_draws": int(d["stored_draws"]),
         "sampling_coordinates": d.get("sampling_coordinates", "law parameters"),
+        "restarted_walkers": int(d.get("restarted_walkers", 0)),
         "path": d.get("path"),
         "checkpoint": None if checkpoint is None else str(checkpoint),
     }
