@@ -22,8 +22,10 @@ against the study's workflow, an openseespy forward model per evaluation, in the
   empty and with a warm temporary Numba cache.
 
 Targets: full posterior <= 30 s on 2 cores; >= 100x per evaluation.  Section ``bench_calibration``.
-Run: ``python benchmarks/bench_calibration.py [--quick]`` (``--quick``: one seed capped at 300
-steps, no whole commands, RESULTS.md unchanged).
+Run: ``python benchmarks/bench_calibration.py [--quick] [--command-runs N]`` (``--quick``: one
+seed capped at 300 steps, no whole commands, RESULTS.md unchanged; ``--command-runs N``: only the
+2401-sample command, N times in fresh processes, each run's wall and CPU time, the medians and the
+load average printed, RESULTS.md unchanged).
 """
 
 from __future__ import annotations
@@ -52,10 +54,10 @@ from rrfrei.calibration import ConvergenceWarning, calibrate, setup_problem  # n
 
 MAX_STEPS = 20000  # the package default cap: report the real time to convergence
 SPC1 = HERE.parents[1] / "shared" / "data" / "hysteresis" / "clt_connection_tannert_spc1" / "SPC1.csv"
-CMD_HEADER = ("| test | wall [s] | stopped by | steps x walkers | max tau | R-hat max | ESS min "
+CMD_HEADER = ("| test | wall [s] | CPU [s] | stopped by | steps x walkers | max tau | R-hat max | ESS min "
               "| likelihood points | law path (samples; force error at the optimum) | NRMSE "
               "| posterior.nc [MB] | chain.h5 [MB] | converged |\n"
-              "|---|---:|---|---|---:|---:|---:|---|---|---:|---:|---:|---|")
+              "|---|---:|---:|---|---|---:|---:|---:|---|---|---:|---:|---:|---|")
 CLI = [sys.executable, "-m", "rrfrei.app", "calibrate"]
 WALKERS = 32
 TOLERANCE = 1e-8  # relative difference of the two log-likelihoods
@@ -91,7 +93,12 @@ def opensees_side(ops, test) -> tm.Side:
 
 
 def main() -> None:
-    args = tm.parser(__doc__).parse_args()
+    ap = tm.parser(__doc__)
+    ap.add_argument("--command-runs", type=int, default=0, metavar="N",
+                    help="only the 2401-sample command, N times; medians printed, RESULTS.md unchanged")
+    args = ap.parse_args()
+    if args.command_runs > 0:
+        return command_runs(args.command_runs)
     import openseespy.opensees as ops
 
     repeat = 3 if args.quick else 15
@@ -144,7 +151,7 @@ def main() -> None:
                 "--disp-col", "Lead Actuator Displacment:mm", "--force-col", "Lead Actuator Force:kN"]))
         else:
             cmd_rows.append(f"| SPC1 | missing: {SPC1.name} not found next to the repository |"
-                            + " |" * 12)
+                            + " |" * 13)
     # --- cold start ------------------------------------------------------------------------------
     cold = tm.cold_start(COLD.format(theta=list(theta[0])))
     multi_row = (f"| multi-core throughput: rrfrei on {t_multi.threads} threads | {rate:.0f} evaluations/s "
@@ -201,6 +208,27 @@ Targets: 2401 samples <= 15 s; SPC1 converged in <= 180 s with posterior.nc <= 1
     report("bench_calibration", md, quick=args.quick, headline=head)
 
 
+def command_runs(n: int) -> None:
+    """The 2401-sample command ``n`` times (fresh processes, warm cache): wall and CPU per run,
+    their medians and the load average before and after (the machine may be shared)."""
+    csv = bouc_wen_csv()
+    before = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    runs = []
+    for i in range(n):
+        out = Path(tempfile.mkdtemp(prefix="bench_cal_out_"))
+        cpu0, t0 = tm.children_cpu(), time.perf_counter()
+        run = subprocess.run([*CLI, str(csv), "--law", "bouc_wen", "--out", str(out), "--quiet"],
+                             capture_output=True, text=True, cwd=HERE.parent, env=tm.user_env())
+        wall, cpu = time.perf_counter() - t0, tm.children_cpu() - cpu0
+        steps = json.loads((out / "run.json").read_text())["steps"] if run.returncode == 0 else None
+        runs.append((wall, cpu))
+        print(f"run {i + 1}: {wall:.1f} s wall, {cpu:.1f} s CPU, exit {run.returncode}, {steps} steps",
+              flush=True)
+    after = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    print(f"median {np.median([w for w, _ in runs]):.1f} s wall, {np.median([c for _, c in runs]):.1f} s "
+          f"CPU over {n} runs; load average before {before}, after {after}")
+
+
 def bouc_wen_csv() -> Path:
     """The 2401-sample test of the command benchmark, written to a temporary CSV."""
     import pandas as pd
@@ -219,16 +247,17 @@ def bouc_wen_csv() -> Path:
 def command_row(label: str, csv: Path, extra: list[str], walls: list | None = None) -> str:
     """Run the command in a fresh process on ``csv`` and return its table row."""
     out = Path(tempfile.mkdtemp(prefix="bench_cal_out_"))
-    t0 = time.perf_counter()
     env = tm.user_env()  # as the user runs it: no BLAS pins, the project's own Numba cache
+    cpu0, t0 = tm.children_cpu(), time.perf_counter()
     run = subprocess.run([*CLI, str(csv), "--law", "bouc_wen", "--out", str(out), "--quiet", *extra],
                          capture_output=True, text=True, cwd=HERE.parent, env=env)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, tm.children_cpu() - cpu0
     if walls is not None and run.returncode == 0:
         walls.append(wall)
-    print(f"{label}: {wall:.1f} s, exit {run.returncode}\n{run.stderr[-1500:]}", flush=True)
+    print(f"{label}: {wall:.1f} s wall, {cpu:.1f} s CPU, exit {run.returncode}\n{run.stderr[-1500:]}",
+          flush=True)
     if run.returncode != 0:
-        return f"| {label} | {wall:.1f} | failed (exit {run.returncode}) |" + " |" * 10
+        return f"| {label} | {wall:.1f} | {cpu:.1f} | failed (exit {run.returncode}) |" + " |" * 10
     r = {**json.loads((out / "result.json").read_text()), **json.loads((out / "run.json").read_text())}
     mb = (out / "posterior.nc").stat().st_size / 1e6
     ck = out / "chain.h5"
@@ -237,7 +266,7 @@ def command_row(label: str, csv: Path, extra: list[str], walls: list | None = No
     p = r.get("path") or {}
     path = (f"{p['samples']} (>= {p['half_cycle_points']} per half-cycle; {p['error_rms_kN']:.3g} kN "
             f"RMS = {p['error_rms_sigma']:.3f} sigma)" if p.get("decimated") else "every sample")
-    return (f"| {label} | {wall:.1f} | {r['stopped_by']} | {r['steps']} x {r.get('walkers', '')} "
+    return (f"| {label} | {wall:.1f} | {cpu:.1f} | {r['stopped_by']} | {r['steps']} x {r.get('walkers', '')} "
             f"| {r['tau_max']:.0f} | {r['rhat_max']:.3f} | {r['ess_min']:.0f} | {lik} | {path} "
             f"| {100 * r['nrmse']:.2f} % | {mb:.1f} | {ck_mb:.1f} | {r['converged']} |")
 

@@ -195,7 +195,7 @@ def test_a_numerical_failure_exits_1_and_a_user_error_exits_2(monkeypatch, capsy
     from rrfrei.app import cli
 
     parser = cli.build_parser()
-    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    monkeypatch.setattr(cli, "build_parser", lambda *_: parser)
     parser._subparsers._group_actions[0].choices["calibrate"].set_defaults(func=_raiser(kind, text))
     rc = cli.main(["calibrate", "protocol1", "--law", "linear", "--out", "unused"])
     err = capsys.readouterr().err

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 import sys
 import types
 from pathlib import Path
@@ -25,17 +24,20 @@ def test_zero_steps_or_walkers_is_an_error_naming_the_option_not_a_silent_defaul
 def test_a_command_module_that_fails_to_import_is_not_silently_dropped(monkeypatch):
     import rrfrei.app.commands
 
-    # the command modules are ordinary imports of rrfrei.app.cli: one that cannot be imported
-    # stops the CLI with an error naming it (never a CLI without that command)
-    monkeypatch.delitem(sys.modules, "rrfrei.app.cli")
+    # a command's module is imported when the command runs (or when every parser is built):
+    # one that cannot be imported stops it with an error naming it (never a CLI without it)
     monkeypatch.setitem(sys.modules, "rrfrei.app.commands.gap_validate", None)  # not importable
-    monkeypatch.delattr(rrfrei.app.commands, "gap_validate")
+    monkeypatch.delattr(rrfrei.app.commands, "gap_validate", raising=False)
     with pytest.raises(ImportError, match="gap_validate"):
-        importlib.import_module("rrfrei.app.cli")
-    broken = types.ModuleType("rrfrei.app.commands.broken")  # no register(): a bug
-    monkeypatch.setattr(cli, "COMMAND_MODULES", (*cli.COMMAND_MODULES, broken))
-    with pytest.raises(AttributeError, match="register"):
         cli.build_parser()
+    with pytest.raises(ImportError, match="gap_validate"):
+        cli.main(["gap-validate", "--help"])
+    broken = types.ModuleType("rrfrei.app.commands.broken")  # no register(): a bug
+    monkeypatch.setitem(sys.modules, "rrfrei.app.commands.broken", broken)
+    monkeypatch.setitem(rrfrei.app.commands.HELPS, "broken", "a command without register()")
+    monkeypatch.setattr(cli, "COMMANDS", (*cli.COMMANDS, "broken"))
+    with pytest.raises(AttributeError, match="register"):
+        cli.build_parser(["broken"])
 
 
 def test_load_building_reads_a_toml_path_and_lists_bundled_names_for_an_unknown_one(tmp_path):

@@ -394,6 +394,7 @@ def calibrate(
         "note": res.tau_note, "converged": False, "stopped_by": res.stopped_by,
         "max_steps": int(max_steps), "time_budget": budget.seconds,
         "resumed_steps": int(res.resumed_steps), "points": problem.n_points,
+        "restarted_walkers": int(res.restarted),
         "sampling_coordinates": res.coordinates,
         "path": {"decimated": bool(problem.decimated), "samples": problem.n_path,
                  "decimable": not (spec.uses_velocity and test.has_time),

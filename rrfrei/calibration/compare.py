@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from rrfrei.calibration.results import Calibration, _as_calibration, load_arviz
+from rrfrei.calibration.results import Calibration, _as_calibration, arviz_numpy, load_arviz
 from rrfrei.io import ShearTest, read_test
 
 __all__ = ["CompareResult", "compare", "elpd_loco", "cycle_groups", "runnable_laws", "too_few_laws"]
@@ -86,7 +86,7 @@ def _loco_from_ll(ll: np.ndarray, labels: np.ndarray, idata) -> tuple[float, flo
     ds = xr.Dataset({"cycle": (("chain", "draw", "cycle_dim"), sums)},
                     coords={"chain": np.arange(sums.shape[0]), "draw": np.arange(sums.shape[1])})
     tmp = az.InferenceData(posterior=idata.posterior, log_likelihood=ds)
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), arviz_numpy():
         warnings.simplefilter("ignore")
         res = az.loo(tmp, pointwise=True, var_name="cycle")
     per = pd.DataFrame({
@@ -230,7 +230,7 @@ def compare(
                              "laws are compared on the same data only")
     az = load_arviz()
     idatas = {k: c.idata for k, c in cals.items()}
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), arviz_numpy():
         warnings.simplefilter("ignore")
         loo = az.compare(idatas, ic="loo", var_name="force")
         waic = az.compare(idatas, ic="waic", var_name="force")

@@ -203,15 +203,20 @@ class Check:
                 f"R-hat {self.rhat:.3f}")
 
 
-def check(chain: np.ndarray, max_draws: int, previous_tmax: float | None = None) -> Check:
+def check(chain: np.ndarray, max_draws: int, previous_tmax: float | None = None, start: int = 0) -> Check:
     """Burn-in, tau, thinning and the stored draws' ESS and R-hat of a chain (steps, walkers, k):
     the convergence rule of :func:`run_chain` and the final check of :func:`rrfrei.calibrate`.
 
     With ``previous_tmax`` (the last check's tau) the ESS and R-hat are computed only when the
     tau part of the rule (:meth:`Check.tau_ok`) holds, the only case in which they can decide it
-    (nan otherwise).
+    (nan otherwise).  ``start``: steps before it are never kept (walkers were restarted there,
+    :func:`rrfrei.calibration.sampler.stuck_walkers`): the rule is the rule of the chain from
+    ``start`` on, and the returned burn-in counts from step 0.
     """
-    n, nw = chain.shape[0], chain.shape[1]
+    n_all, nw = chain.shape[0], chain.shape[1]
+    start = min(max(int(start), 0), n_all)
+    chain = chain[start:]
+    n = chain.shape[0]
     t0 = _tau(chain[n // 4:])
     burn = burn_in(n, float(np.max(t0)) if np.all(np.isfinite(t0)) else math.nan)
     kept = chain[burn:]
@@ -219,9 +224,9 @@ def check(chain: np.ndarray, max_draws: int, previous_tmax: float | None = None)
     tmax = float(np.max(tau)) if np.all(np.isfinite(tau)) else math.nan
     thin = thinning(n, burn, tmax, nw, max_draws)
     stored = kept[::thin]
-    chk = Check(burn, tau, tmax, math.nan, math.nan, math.nan, n=n, thin=thin,
+    chk = Check(start + burn, tau, tmax, math.nan, math.nan, math.nan, n=n_all, thin=thin,
                 draws=int(stored.shape[0] * nw))
-    if previous_tmax is None or chk.tau_ok(n, previous_tmax):
+    if previous_tmax is None or chk.tau_ok(n_all, previous_tmax):
         chk.ess_bulk, chk.ess_tail, chk.rhat = _diagnose(stored)
         chk.diagnosed = True
     return chk

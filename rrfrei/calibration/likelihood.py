@@ -47,6 +47,7 @@ record's at the optimum.
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -186,12 +187,31 @@ def law_forces(spec: LawSpec, P: np.ndarray, test: ShearTest) -> tuple[np.ndarra
     return _forces(spec, P, disp, time, use_time)
 
 
+@contextmanager
+def _threads_for(rows: int):
+    """One Numba thread for a batch of one row (the optimiser's polish, the path check): the
+    row runs on one thread anyway, and waking the idle pool costs more than the row when the
+    cores are shared (OpenMP's waiting threads spin); larger batches keep every thread."""
+    if rows > 1:
+        yield
+        return
+    import numba
+
+    n = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(n)
+
+
 def _forces(spec: LawSpec, P, disp, time, use_time) -> tuple[np.ndarray, np.ndarray]:
     F = np.empty((P.shape[0], disp.size))
     T = np.empty_like(F)
     status = np.zeros(P.shape[0], dtype=np.int64)
-    batch_kernels(spec).forces_batch(P, np.array(spec.initial_state, dtype=float), disp, time,
-                                     use_time, F, T, status)
+    with _threads_for(P.shape[0]):
+        batch_kernels(spec).forces_batch(P, np.array(spec.initial_state, dtype=float), disp, time,
+                                         use_time, F, T, status)
     F[status != 0] = np.nan
     return F, status
 

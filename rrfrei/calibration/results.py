@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import warnings
 from collections.abc import Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,8 +36,8 @@ from rrfrei.calibration.noise import NoiseModel, noise_model, simulate_noise
 from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, get
 
-__all__ = ["Calibration", "load_arviz", "posterior_draws", "loglik_pointwise", "build_idata", "summary_table",
-           "simulate_noise", "draws_cap"]
+__all__ = ["Calibration", "load_arviz", "arviz_numpy", "posterior_draws", "loglik_pointwise", "build_idata",
+           "summary_table", "simulate_noise", "draws_cap"]
 
 MAX_DRAWS = 1000
 """Posterior draws kept (walkers x draws) after burn-in and thinning."""
@@ -74,6 +75,24 @@ def load_arviz():
         warnings.simplefilter("ignore", FutureWarning)
         import arviz as az
     return az
+
+
+@contextmanager
+def arviz_numpy():
+    """``arviz`` (:func:`load_arviz`) with its Numba paths off inside the block (restored after).
+
+    arviz jits a few helpers of its statistics (the variance in ``rhat`` and ``ess``, a square
+    root in ``mcse``) without a cache, so every process compiles them again, which takes longer
+    than the ESS, R-hat and PSIS-LOO of a calibration's draws take with NumPy.  The NumPy paths
+    compute the same quantities (``np.var`` in place of a one-pass sum of squares).
+    """
+    az = load_arviz()
+    flag = az.Numba.numba_flag
+    az.Numba.numba_flag = False
+    try:
+        yield az
+    finally:
+        az.Numba.numba_flag = flag
 
 
 @dataclass(frozen=True, eq=False)
@@ -305,11 +324,10 @@ def summary_table(idata, spec: LawSpec, mp: Mapping[str, float], free: tuple[str
                   noise: str | NoiseModel) -> pd.DataFrame:
     """The :attr:`Calibration.summary` of a posterior: unit, mean, MAP, sd, 2.5 %, 97.5 %, bulk
     ESS and R-hat (arviz) per sampled quantity."""
-    az = load_arviz()
     nm = noise_model(noise)
     names = list(free) + list(nm.params)
     post = idata.posterior
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), arviz_numpy() as az:
         warnings.simplefilter("ignore")
         ess = az.ess(idata, var_names=names, method="bulk")
         rhat = az.rhat(idata, var_names=names)

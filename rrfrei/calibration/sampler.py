@@ -16,6 +16,14 @@
    effective sample size >= :data:`ESS_TARGET` (400) and a rank-normalised split R-hat <
    :data:`RHAT_LIMIT` (1.05), walkers taken as chains (Vehtari et al. 2021), and the kept chain is
    >= :data:`MIN_TAU` (10) integrated autocorrelation times long with a stable estimate of tau.
+   Stuck walkers (:func:`stuck_walkers`: a mean log posterior over the last :data:`CHECK` steps
+   far below the ensemble's median walker's) are restarted at the position of a randomly chosen
+   healthy walker, at most :data:`MAX_RESTARTS` times, and the chain before the restart is never
+   kept (:func:`check`'s ``start``).  Why: on the CLT record SPC1 one or two of 32 walkers could
+   stay for thousands of steps tens of log-units below the others, far out in the ``k_init``
+   tail (a differential-evolution proposal is as large as the other walkers' spread, far too
+   small to bring one back along the ridge), and R-hat stayed above the rule's limit until the
+   time budget ran out.
    The stopping rule and the final check of :func:`rrfrei.calibrate` are one function on the same
    draws, so a run stopped as converged is converged (a rule on the whole chain with a separate
    check on the stored draws stopped runs that then failed the check).  The tau conditions keep a
@@ -57,6 +65,7 @@ from rrfrei.calibration.reparam import sampling_coordinates
 from rrfrei.calibration.store import _Store, check_checkpoint, load_optimum, save_optimum
 
 __all__ = ["find_map", "polish_map", "run_chain", "ensemble_size", "ChainResult", "CHECK", "MAX_STEPS",
+           "MAX_RESTARTS", "STUCK_SD", "stuck_walkers", "restart_walkers",
            "CONVERGENCE_RULE", "Check", "check", "thinning", "check_checkpoint", "load_optimum",
            "save_optimum"]
 
@@ -81,6 +90,7 @@ class ChainResult:
     rhat: float = float("nan")  # largest over parameters, stored draws
     resumed_steps: int = 0  # steps found in the checkpoint
     coordinates: str = "law parameters"  # the sampling coordinates (rrfrei.calibration.reparam)
+    restarted: int = 0  # walkers restarted (stuck_walkers), over the whole run
 
 
 
@@ -92,6 +102,55 @@ def ensemble_size(walkers: int | None, ndim: int) -> int:
         raise ValueError(f"walkers = {walkers!r} is too few for {ndim} sampled quantities; "
                          f"use >= {2 * ndim}")
     return int(nw) + int(nw) % 2
+
+
+STUCK_SD = 5.0
+"""A walker is stuck when its mean log posterior over the last :data:`CHECK` steps lies more than
+``STUCK_SD sqrt(ndim / 2)`` below the median walker's: ``sqrt(ndim / 2)`` is the sd of the log
+density of a draw from an ndim-dimensional Gaussian posterior, and a mean over a hundred steps
+spreads less than one draw, so a healthy walker is never that far below."""
+MAX_RESTARTS = 3
+"""Most walker restarts of one run (each restarts the kept chain)."""
+
+
+def stuck_walkers(recent_logp: np.ndarray, ndim: int) -> np.ndarray:
+    """Walkers stuck far below the ensemble: boolean (walkers,) from their log posterior over the
+    last steps ``recent_logp`` (steps, walkers); see :data:`STUCK_SD`.  None are stuck when more
+    than half would be (then the ensemble itself has not settled)."""
+    mean = np.mean(np.asarray(recent_logp, dtype=float), axis=0)
+    mean = np.where(np.isfinite(mean), mean, -np.inf)
+    stuck = mean < np.median(mean) - STUCK_SD * math.sqrt(ndim / 2.0)
+    return stuck if 2 * int(stuck.sum()) < stuck.size else np.zeros_like(stuck)
+
+
+def restart_walkers(state: emcee.State, stuck: np.ndarray, rng: np.random.Generator,
+                    log_prob) -> emcee.State:
+    """``state`` with each ``stuck`` walker moved next to a healthy walker drawn at random by
+    ``rng``: at ``x_d + s (x_a - x_b)`` (``x_a``, ``x_b`` two other healthy walkers, ``s`` =
+    1e-2, halved until ``log_prob`` (vectorised) is finite there), never onto ``x_d`` itself: two
+    walkers at one point make the snooker move's proposal 0 / 0.  A walker with no finite
+    position near its donor keeps the donor's position and log probability."""
+    coords, lp = np.array(state.coords, copy=True), np.array(state.log_prob, copy=True)
+    idx = np.flatnonzero(stuck)
+    healthy = np.flatnonzero(~stuck)
+    donors = rng.choice(healthy, size=idx.size, replace=True)
+    pairs = np.array([rng.choice(healthy, size=2, replace=False) for _ in idx]).reshape(-1, 2)
+    step = coords[pairs[:, 0]] - coords[pairs[:, 1]]
+    todo = np.ones(idx.size, dtype=bool)
+    scale = 1e-2
+    for _ in range(20):
+        cand = coords[donors[todo]] + scale * step[todo]
+        new_lp = np.asarray(log_prob(cand), dtype=float)
+        ok = np.isfinite(new_lp)
+        where = np.flatnonzero(todo)[ok]
+        coords[idx[where]], lp[idx[where]] = cand[ok], new_lp[ok]
+        todo[np.flatnonzero(todo)[ok]] = False
+        if not todo.any():
+            break
+        scale *= 0.5
+    left = np.flatnonzero(todo)
+    coords[idx[left]], lp[idx[left]] = coords[donors[left]], lp[donors[left]]
+    return emcee.State(coords, log_prob=lp, random_state=state.random_state)
 
 
 def moves() -> list:
@@ -171,10 +230,11 @@ def run_chain(
     bar = progress_bar(max(target - resumed, 0), "MCMC", enabled=progress, unit="step")
     chk = None
     previous = math.inf
+    restarts, restarted = 0, 0
     try:
         if steps is None and resumed >= 3 * CHECK:  # a resumed chain may already be converged
-            previous = check(store.chain[:-CHECK], max_draws).tmax
-            chk = check(store.chain, max_draws, previous)
+            previous = check(store.chain[:-CHECK], max_draws, start=store.restart).tmax
+            chk = check(store.chain, max_draws, previous, start=store.restart)
             if chk.converged(store.n, previous):
                 stopped_by = "converged"
                 target = store.n
@@ -203,12 +263,21 @@ def run_chain(
                 stopped_by = "time_budget"
                 break
             if steps is None and store.n >= 2 * CHECK:
-                chk = check(store.chain, max_draws, previous)
+                chk = check(store.chain, max_draws, previous, start=store.restart)
                 bar.set_postfix_str(chk.text())
                 if chk.converged(store.n, previous):
                     stopped_by = "converged"
                     break
                 previous = chk.tmax
+                stuck = stuck_walkers(store.logp[-CHECK:], ndim)
+                if restarts < MAX_RESTARTS and stuck.any() and store.n - store.restart >= CHECK:
+                    state = restart_walkers(state, stuck, np.random.default_rng([int(seed), store.n]),
+                                            log_prob)
+                    store.restart = store.n
+                    restarts, restarted = restarts + 1, restarted + int(stuck.sum())
+                    previous = math.inf  # tau of the chain from the restart on: no previous one
+                    chk = None  # checked the chain before the restart: not the final check
+                    continue
                 if math.isfinite(chk.tmax):
                     need = chk.burn + MIN_TAU * chk.tmax
                     if chk.ess_bulk > 0:  # the stored draws' ESS grows with the chain until ~ draws
@@ -219,7 +288,7 @@ def run_chain(
         bar.close()
     chain, logp = store.chain, store.logp
     if chk is None or not chk.diagnosed or chk.n != chain.shape[0]:  # else: the last check is this one
-        chk = check(chain, max_draws)
+        chk = check(chain, max_draws, start=store.restart)
     tau, tmax = chk.tau, chk.tmax
     tau_half = _tau(chain[chk.burn: chk.burn + (chain.shape[0] - chk.burn) * 4 // 5])
     long_enough = bool(np.all(np.isfinite(tau)) and chain.shape[0] - chk.burn >= MIN_TAU * tmax)
@@ -246,7 +315,7 @@ def run_chain(
         converged=converged, tau_note=note,
         evals=problem.n_evals - evals0, seconds=time.perf_counter() - t0, stopped_by=stopped_by,
         burn=chk.burn, thin=chk.thin, ess_bulk=chk.ess_bulk, ess_tail=chk.ess_tail, rhat=chk.rhat,
-        resumed_steps=resumed, coordinates=coords.name,
+        resumed_steps=resumed, coordinates=coords.name, restarted=restarted,
     )
 
 

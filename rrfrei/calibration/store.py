@@ -35,6 +35,7 @@ class _Store:
         self.logp = np.empty((0, nw))
         self.accepted = np.zeros(nw)
         self.written = 0
+        self.restart = 0  # the step at which stuck walkers were last restarted (0: never)
         self.last = time.perf_counter()
         if self.path is not None:
             backend = emcee.backends.HDFBackend(self.path)
@@ -49,6 +50,7 @@ class _Store:
                 self.logp = backend.get_log_prob()
                 self.accepted = np.asarray(backend.accepted, dtype=float)
                 self.written = n
+                self.restart = min(_stored_restart(self.path), n)
             else:
                 backend.reset(nw, ndim)
 
@@ -78,8 +80,20 @@ class _Store:
             g["log_prob"][self.written:] = self.logp[self.written:]
             g["accepted"][:] = self.accepted
             g.attrs["iteration"] = self.n
+            g.attrs[RESTART_ATTR] = self.restart
         self.written = self.n
         self.last = time.perf_counter()
+
+
+RESTART_ATTR = "rrfrei_restart"
+"""Attribute of the ``mcmc`` group: the step of the last walker restart (ignored by emcee)."""
+
+
+def _stored_restart(path: str) -> int:
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        return int(f["mcmc"].attrs.get(RESTART_ATTR, 0))
 
 
 def _stored_iterations(backend: emcee.backends.HDFBackend) -> int:

@@ -8,6 +8,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from rrfrei.app.commands import HELPS
 from rrfrei.app.commands.args import (
     add_command,
     add_json,
@@ -29,7 +30,7 @@ from rrfrei.calibration import (
     run_stats,
 )
 from rrfrei.calibration.likelihood import DENSE_POINTS, HALF_CYCLE_POINTS, LIKELIHOOD_POINTS
-from rrfrei.calibration.results import load_arviz
+from rrfrei.calibration.results import arviz_numpy
 from rrfrei.calibration.sampler import CONVERGENCE_RULE, MAX_STEPS
 from rrfrei.io import DISP_UNITS, FORCE_UNITS, bundled_tests, load_test, read_test
 from rrfrei.laws import get
@@ -96,7 +97,7 @@ def add_common(p: argparse.ArgumentParser) -> None:
     add_no_progress(p)
 
 
-HELP = "calibrate a law's parameters on a shear test (posterior, checks, figures)"
+HELP = HELPS["calibrate"]
 """One-line help of the command in ``rrfrei --help``."""
 DESCRIPTION = paragraph("""
 Bayesian calibration of an isolator law on a cyclic shear test CSV (columns time_s, disp_mm,
@@ -245,8 +246,7 @@ def run(args: argparse.Namespace) -> int:
         cal.summary.to_csv(out / "summary.csv")
         pred.cycles.to_csv(out / "cycles.csv", index=False)
         pred.asce.to_csv(out / "asce_7_22.csv", index=False)
-        az = load_arviz()
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), arviz_numpy() as az:
             warnings.simplefilter("ignore")
             loo = az.loo(cal.idata, var_name="force")
         hold = {}
@@ -281,6 +281,7 @@ def run(args: argparse.Namespace) -> int:
         "likelihood_points": int(d["likelihood_points"]),
         "points": int(d["points"]), "stored_draws": int(d["stored_draws"]),
         "sampling_coordinates": d.get("sampling_coordinates", "law parameters"),
+        "restarted_walkers": int(d.get("restarted_walkers", 0)),
         "path": d.get("path"),
         "checkpoint": None if checkpoint is None else str(checkpoint),
     }

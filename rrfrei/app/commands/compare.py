@@ -8,6 +8,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from rrfrei.app.commands import HELPS
 from rrfrei.app.commands.args import add_command, paragraph
 from rrfrei.app.commands.calibrate import add_column_args, add_common, load
 from rrfrei.calibration import BoundWarning, ConvergenceWarning, calibrate, compare
@@ -24,7 +25,7 @@ DIR/posterior_<law>.nc.
 """
 
 
-HELP = "compare laws on one test by PSIS-LOO, WAIC and leave-one-cycle-out"
+HELP = HELPS["compare"]
 """One-line help of the command in ``rrfrei --help``."""
 DESCRIPTION = paragraph("""
 Calibrate each law on the test and compare their expected log predictive densities (PSIS-LOO with

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from rrfrei.app.commands import HELPS
 from rrfrei.app.commands.args import add_command, add_no_progress, nonneg_int, paragraph
 from rrfrei.app.demo import run_demo
 
@@ -15,7 +16,7 @@ Example:
 """
 
 
-HELP = "run the whole pipeline on the bundled data and write an HTML report"
+HELP = HELPS["demo"]
 """One-line help of the command in ``rrfrei --help``."""
 DESCRIPTION = paragraph("""
 Calibrate four isolator laws on the bundled SYNTHETIC RR-FREI test (protocol 1), compare them,

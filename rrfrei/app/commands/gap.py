@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import ground_motions
+from rrfrei.app.commands import HELPS
 from rrfrei.app.commands.args import add_command, add_report_options
 from rrfrei.app.commands.calibrate import add_column_args, load
 from rrfrei.budget import BudgetExceeded, TimeBudget
@@ -53,7 +54,7 @@ DEFAULT_BUDGET = 600.0
 """Default wall-clock budget of ``rrfrei gap`` [s]."""
 
 
-HELP = "diagnose the sim-to-real gap of a calibrated law (which unmodelled effect)"
+HELP = HELPS["gap"]
 """One-line help of the command in ``rrfrei --help``."""
 
 

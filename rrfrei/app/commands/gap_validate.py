@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rrfrei.app.commands import HELPS
 from rrfrei.app.commands.args import add_command, add_no_progress, add_time_budget, paragraph, positive_int
 from rrfrei.budget import seconds_arg
 from rrfrei.gap.validation import CONTROLS, FULL, Settings, cases, run_table
@@ -25,7 +26,7 @@ Exit status 0 when the report was written, also when goals were missed (the repo
 """
 
 
-HELP = "validate the gap diagnosis on synthetic tests with withheld effects"
+HELP = HELPS["gap_validate"]
 """One-line help of the command in ``rrfrei --help``."""
 DESCRIPTION = paragraph("""
 For every catalogue effect, three generator forms that are not the catalogue's kernels, and four

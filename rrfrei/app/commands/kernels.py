@@ -7,6 +7,7 @@ import inspect
 import json
 import sys
 
+from rrfrei.app.commands import HELPS
 from rrfrei.app.commands.args import add_command, add_json, paragraph
 from rrfrei.calibration.likelihood import batch_kernels
 from rrfrei.laws import get, specialise
@@ -19,7 +20,7 @@ Example:
 """
 
 
-HELP = "list the generated kernel files of a law (the code a command compiles)"
+HELP = HELPS["kernels"]
 """One-line help of the command in ``rrfrei --help``."""
 DESCRIPTION = paragraph("""
 Generate (if needed) and list the kernel files bound to LAW: the whole-history drivers of simulate

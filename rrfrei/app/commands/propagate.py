@@ -13,6 +13,7 @@ import pandas as pd
 
 import ground_motions
 from ground_motions.asce7 import SuiteSizeWarning
+from rrfrei.app.commands import HELPS
 from rrfrei.app.commands.args import add_command, add_json, add_no_progress, int_arg, paragraph
 from structures.inputs import resolve_building, resolve_records
 from structures.plan_design import (
@@ -101,7 +102,7 @@ def _asce7(text: str) -> tuple[float, ...]:
     return vals
 
 
-HELP = "run posterior draws of an isolator law through a building under ground motions"
+HELP = HELPS["propagate"]
 """One-line help of the command in ``rrfrei --help``."""
 DESCRIPTION = paragraph("""
 Draw --samples full parameter sets from a calibrated posterior, run each on the building under every

@@ -8,7 +8,7 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
-from rrfrei.app.commands import shake_table_meta
+from rrfrei.app.commands import HELPS, shake_table_meta
 from rrfrei.app.commands.args import add_command, add_report_options, paragraph, positive_int
 from rrfrei.laws import get
 from rrfrei.notes import Note
@@ -43,7 +43,7 @@ DEFAULT_BUDGET = 900.0
 (every effect fitted by output error); the margin is for a loaded machine."""
 
 
-HELP = "predict a base-isolated building on shake-table runs and diagnose the gap"
+HELP = HELPS["shake_table"]
 """One-line help of the command in ``rrfrei --help``."""
 DESCRIPTION = paragraph("""
 Calibrate the building by output error: the identified superstructure on the isolator law, driven by
