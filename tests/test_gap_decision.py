@@ -305,7 +305,7 @@ def test_the_diagnosis_runs_blas_on_one_thread_and_restores_it_after():
     import numpy  # noqa: F401  (loads its BLAS)
     from threadpoolctl import threadpool_info
 
-    from rrfrei.gap.blas import one_blas_thread
+    from rrfrei.blas import one_blas_thread
 
     def blas():
         return [d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"]

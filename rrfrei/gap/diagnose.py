@@ -70,11 +70,11 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
+from rrfrei.blas import one_blas_thread
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap import decision as dec
-from rrfrei.gap.blas import one_blas_thread
 from rrfrei.gap.catalogue import ScreenContext, catalogue, screen_all
 from rrfrei.gap.checkpoint import Checkpoint, _Checkpoint, _fit_or_restore
 from rrfrei.gap.isolator import IsolatorModel
@@ -96,7 +96,7 @@ from rrfrei.io import ShearTest, read_test
 from rrfrei.notes import SEVERITIES, Note, ordered
 
 __all__ = ["EffectScore", "Metrics", "GapReport", "diagnose", "diagnose_gap", "CONFOUNDED", "Checkpoint",
-           "loco", "one_blas_thread", "VERDICTS"]
+           "loco", "VERDICTS"]
 
 CONFOUNDED = ("degradation", "mullins", "rollover", "slip")
 """Effects that a growing-amplitude protocol cannot tell apart on its own."""
