@@ -2,7 +2,7 @@
 
 The check of issue 27: does the pipeline's output-error calibration reach what a plain least-
 squares fit of the simulated building reaches?  Both use the project's public API and the same
-simulation (:func:`structures.building_model.simulate`: the identified superstructure, the
+simulation (:func:`structures.shake_table.building_model.simulate`: the identified superstructure, the
 isolator law, the runs in order with their state carried):
 
 * **plain**: ``scipy.optimize.least_squares`` (trust-region reflective, the law's own bounds,
@@ -30,9 +30,15 @@ from scipy.optimize import least_squares
 
 from rrfrei.calibration.checks import nrmse
 from rrfrei.gap.model import IsolatorModel
-from structures.building_model import BuildingData, BuildingModel, Superstructure, calibration_test, simulate
-from structures.identify import identify_superstructure
-from structures.shake_table_gap import BNCS_ORDER, CHANNELS, resolve_run
+from structures.shake_table.building_model import (
+    BuildingData,
+    BuildingModel,
+    Superstructure,
+    calibration_test,
+    simulate,
+)
+from structures.shake_table.gap import BNCS_ORDER, CHANNELS, resolve_run
+from structures.shake_table.identify import identify_superstructure
 
 
 def main() -> None:

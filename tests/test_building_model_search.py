@@ -1,4 +1,4 @@
-"""How the building's output-error fit searches (structures.building_model): a global start
+"""How the building's output-error fit searches (structures.shake_table.building_model): a global start
 (CMA-ES) before the local least squares, for the baseline over every parameter and for an added
 effect's refit over that effect's parameters and the superstructure's; and the robust local solve
 in every simulation, its deviations from OpenSees counted and reported, never a lost candidate.
@@ -14,11 +14,11 @@ from scipy.optimize import least_squares
 
 import ground_motions
 import structures
-import structures.building_model as bm
+import structures.shake_table.building_model as bm
 from rrfrei.laws import get
-from structures.building import Isolator, ShearBuilding
-from structures.building_model import BuildingData, BuildingModel, Superstructure, simulate
+from structures.building.shear_building import Isolator, ShearBuilding
 from structures.shake_table import ShakeTableRun
+from structures.shake_table.building_model import BuildingData, BuildingModel, Superstructure, simulate
 from tests.test_shake_table_gap_building import MASSES, PL, ZETA, K, _model, _runs
 
 

@@ -1,4 +1,4 @@
-"""The building as the model (structures.building_model): a building simulated from the table
+"""The building as the model (structures.shake_table.building_model): a building simulated from the table
 accelerations and calibrated by output error recovers the parameters it was simulated with, carries
 the isolators' state from run to run, never lets a failed simulation end its optimiser, and its bands
 are judged by coverage and width.
@@ -18,8 +18,9 @@ import ground_motions
 import structures
 from rrfrei.gap.model import IsolatorFit
 from rrfrei.laws import get
-from structures.building import Isolator, ShearBuilding
-from structures.building_model import (
+from structures.building.shear_building import Isolator, ShearBuilding
+from structures.shake_table import BNCS_WEIGHTS_KN, ShakeTableRun
+from structures.shake_table.building_model import (
     FIT_CHANNELS,
     BuildingData,
     BuildingModel,
@@ -27,8 +28,7 @@ from structures.building_model import (
     calibration_test,
     measured_channels,
 )
-from structures.shake_table import BNCS_WEIGHTS_KN, ShakeTableRun
-from structures.shake_table_gap import CHANNELS, building_prediction, run_metrics
+from structures.shake_table.gap import CHANNELS, building_prediction, run_metrics
 
 MASSES = np.array(BNCS_WEIGHTS_KN) / 9.81
 K = np.array([125e3, 95e3, 98e3, 108e3, 60e3])
@@ -157,7 +157,7 @@ def test_a_failing_simulation_is_a_bad_point_never_an_exception(truth, monkeypat
 
 def test_band_width_and_coverage_follow_their_definitions(truth):
     """A band of +-1 about a perfect median covers every sample and is 2 / RMS wide."""
-    from structures.shake_table_gap import SequencePrediction
+    from structures.shake_table.gap import SequencePrediction
 
     _, runs = truth
     meas = {"run1": measured_channels(runs[0])}
@@ -192,7 +192,7 @@ def test_a_stronger_run_gets_a_proportionally_wider_band(truth):
     """The residual model is relative: with no parameter uncertainty, the band's width on each run
     is 2 x 1.96 sigma_c x the RMS of the run's predicted channel, so run 2 (1.8 x the input) gets a
     band wider in proportion to its response, not the calibration run's width."""
-    from structures.building_model import BuildingFit
+    from structures.shake_table.building_model import BuildingFit
 
     b, runs = truth
     m = _model(runs, Superstructure.of(b), PL)

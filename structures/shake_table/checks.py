@@ -180,8 +180,8 @@ def story_fit_r2(run: ShakeTableRun, masses: np.ndarray | None = None, *,
                  band_hz: tuple[float, float] = (1.0, 15.0)) -> np.ndarray:
     """(L-1,) R^2 of each story's least-squares fit V_j = k_j delta_j + c_j delta_j' (both sides
     band-passed ``band_hz``, zero phase), V_j = -sum_{i>=j} m_i a_i with ``masses`` (default the
-    run's) [t]: how well the records follow a shear building (``structures.identify`` fits the same
-    equation, with uncertainty)."""
+    run's) [t]: how well the records follow a shear building
+    (``structures.shake_table.identify`` fits the same equation, with uncertainty)."""
     m = run.masses if masses is None else np.asarray(masses, dtype=float)
     fs = run.rate_hz
     band = (band_hz[0], min(band_hz[1], 0.45 * fs))

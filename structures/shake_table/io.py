@@ -36,7 +36,7 @@ G = 9.81
 BNCS_WEIGHTS_KN = (2275.1, 674.0, 703.0, 1036.3, 1078.1, 593.3)
 """Level weights [kN] of the BNCS building, bottom-up (base slab incl. its 406.6 kN addition,
 then floors 2-5 and the roof), from the source notebook; the unit kN is inferred (see
-``structures/data/shake_table_bncs/PROVENANCE.md``)."""
+``structures/shake_table/data/shake_table_bncs/PROVENANCE.md``)."""
 
 LEVEL_ORDERS = ("base-first", "roof-first")
 """How a list of levels (masses, weights, names, CSV columns) runs: from the base slab above the
@@ -51,7 +51,7 @@ DISP_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 MASS_UNITS = {"t": 1.0, "kg": 0.001}
 WEIGHT_UNITS = {"kN": 1.0, "N": 0.001, "MN": 1000.0}
 
-_DATA = Path(__file__).parent.with_name("data") / "shake_table_bncs"
+_DATA = Path(__file__).with_name("data") / "shake_table_bncs"
 
 
 class MetadataError(ValueError):

@@ -53,8 +53,8 @@ from ground_motions.asce7 import design_value
 from rrfrei.gap.design import bound_params
 from rrfrei.laws import get as get_law
 from rrfrei.laws import plan as plan_laws
-from structures.inputs import resolve_building
-from structures.plan_history import plan_time_history
+from structures.dynamics.plan_history import plan_time_history
+from structures.propagation.inputs import resolve_building
 
 __all__ = ["ANSWERS", "DEFAULT_LAMBDAS", "PlanDesignAnswers", "TorsionAmplification", "check_plan_law",
            "pair_answers", "plan_arrays", "plan_design_answers", "plot_orbit", "resolve_pairs",
@@ -404,7 +404,7 @@ def plan_design_answers(
         law has a coupled plan form (:func:`rrfrei.laws.plan.names`).
     pairs : record pairs (objects with ``name``, ``dt``, ``accel`` (n, 2) [m/s^2] and
         ``scaled(f)``), bundled pair names or ``"A.AT2+B.AT2"`` file pairs
-        (:func:`structures.plan_propagate.resolve_pairs`).
+        (:func:`structures.propagation.plan_propagate.resolve_pairs`).
     params : isolator parameters by name (specimen scale); default: the building's own.
     bounds : (lambda_min, lambda_max), a :class:`rrfrei.gap.design.PropertyModification`
         (its envelope lambdas), or None for the nominal analysis only.  Every force-like

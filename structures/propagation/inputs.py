@@ -22,7 +22,7 @@ import pandas as pd
 
 import ground_motions
 from rrfrei.calibration import Calibration, posterior_draws
-from structures.building import ShearBuilding, load_building
+from structures.building.shear_building import ShearBuilding, load_building
 
 __all__ = ["SpectrumScaling", "pack_draws", "range_from_attrs", "resolve_building", "resolve_posterior",
            "resolve_records", "resolve_scales"]

@@ -94,8 +94,8 @@ from rrfrei.gap.model import (
 )
 from rrfrei.io import ShearTest, concat_tests
 from rrfrei.laws import LawSpec, get
-from structures.history import _solver, kernel
-from structures.newmark_records import Chain, Histories, Layer
+from structures.dynamics.history import kernel, solver_settings
+from structures.dynamics.newmark_records import Chain, Histories, Layer
 from structures.shake_table import ShakeTableRun, isolation_test
 
 __all__ = ["FIT_CHANNELS", "REPORT_CHANNELS", "SYSTEM_EFFECTS", "BuildingData", "BuildingFit",
@@ -175,9 +175,9 @@ class Superstructure:
 
     @classmethod
     def of(cls, sup, source: str = "") -> Superstructure:
-        """From a :class:`structures.identify.SuperstructureIdentification` or a
+        """From a :class:`structures.shake_table.identify.SuperstructureIdentification` or a
         :class:`structures.ShearBuilding`."""
-        from structures.building import ShearBuilding
+        from structures.building.shear_building import ShearBuilding
 
         if isinstance(sup, Superstructure):
             return sup
@@ -196,7 +196,7 @@ class Superstructure:
 
 
 def _placeholder_isolator():
-    from structures.building import Isolator
+    from structures.building.shear_building import Isolator
 
     return Isolator("plasticity", {"k_init": 1.0, "qd": 0.0, "alpha1": 0.5, "alpha2": 0.0, "mu": 2.0})
 
@@ -310,7 +310,7 @@ def simulate(spec: LawSpec, law_p: np.ndarray, sup: Superstructure, data: Buildi
     out: dict[str, dict[str, np.ndarray]] = {}
     m = sup.masses
     K = kernel(spec)
-    solver = _solver(0.5, 0.25, 1e-12, 50, 6, True)
+    solver = solver_settings(0.5, 0.25, 1e-12, 50, 6, True)
     dev = 0
     lay = Layer(np.ascontiguousarray(law_p, dtype=float), 1.0, 1.0, np.array(spec.initial_state, dtype=float))
     groups: list[tuple[float, list[str]]]

@@ -51,8 +51,8 @@ recoverable strain energies are evaluated from the state.
 Shared core
 -----------
 The chain's part of the step (condensation, predictor residual, commit with energy, output step,
-convergence rule) is :mod:`structures.newmark_chain`, which the plan kernel
-(:mod:`structures.plan_newmark`) calls per direction; this module holds what is its own: the
+convergence rule) is :mod:`structures.dynamics.newmark_chain`, which the plan kernel
+(:mod:`structures.dynamics.plan_newmark`) calls per direction; this module holds what is its own: the
 scalar Newton iteration on the base DOF and the calls of the law.
 
 Template
@@ -73,8 +73,8 @@ import numpy as np
 from numba import njit, prange
 
 from rrfrei.laws.specialise import unbound
-from structures import newmark_chain as core
-from structures.newmark_records import N_ENERGY, Histories, Layer, Summary
+from structures.dynamics import newmark_chain as core
+from structures.dynamics.newmark_records import N_ENERGY, Histories, Layer, Summary
 
 SLOTS = ("law_step", "law_step_robust")
 law_step = unbound("law_step")
@@ -85,22 +85,22 @@ law_step_robust = unbound("law_step_robust")
 def integrate(chain, layer, ag, dt, solver, hist):
     """One analysis from rest under the ground acceleration ``ag`` [m/s^2] every ``dt`` [s].
 
-    The chain moves by the shared core :mod:`structures.newmark_chain`; the Newton iteration on
+    The chain moves by the shared core :mod:`structures.dynamics.newmark_chain`; the Newton iteration on
     the base DOF, where the isolator law is called, is written out here.
 
     Parameters
     ----------
-    chain : :class:`structures.newmark_records.Chain` (the superstructure).
-    layer : :class:`structures.newmark_records.Layer` (the isolators).
+    chain : :class:`structures.dynamics.newmark_records.Chain` (the superstructure).
+    layer : :class:`structures.dynamics.newmark_records.Layer` (the isolators).
     ag : (nt,) ground acceleration at the output steps [m/s^2].
     dt : output step [s].
-    solver : :class:`structures.newmark_records.Solver`.
-    hist : :class:`structures.newmark_records.Histories` with nt rows (written), or zero rows
+    solver : :class:`structures.dynamics.newmark_records.Solver`.
+    hist : :class:`structures.dynamics.newmark_records.Histories` with nt rows (written), or zero rows
         (peaks only).
 
     Returns
     -------
-    :class:`structures.newmark_records.Summary` (peaks, status, failing step).
+    :class:`structures.dynamics.newmark_records.Summary` (peaks, status, failing step).
     """
     # (arrays are taken out of the records once: reading one inside the loops would cost a
     # reference count increment and decrement each time)
@@ -266,8 +266,8 @@ def batch(chain, layer, params, ag, dt, solver, n_blocks, out):
 
     The runs are split into ``n_blocks`` contiguous blocks run in parallel (Numba ``prange``),
     one analysis per thread at a time; ``layer`` gives the bearings (its ``params`` unused).
-    Writes run r's :class:`structures.newmark_records.Summary` into row r of the fields of
-    ``out`` (:class:`structures.newmark_records.Batch`).
+    Writes run r's :class:`structures.dynamics.newmark_records.Summary` into row r of the fields of
+    ``out`` (:class:`structures.dynamics.newmark_records.Batch`).
     """
     runs = params.shape[0]
     n = chain.mass.shape[0]

@@ -1,10 +1,10 @@
 """Posterior propagation on the plan building under pairs of records (both components at once).
 
-:func:`propagate_pairs` is :func:`structures.propagate.propagate` for record *pairs*: every
+:func:`propagate_pairs` is :func:`structures.propagation.propagate.propagate` for record *pairs*: every
 posterior draw runs the plan building (:func:`structures.plan_time_history`, the isolator a
 coupled plan law of :mod:`rrfrei.laws.plan`) under both horizontal components of every pair at
 every scale.  It reuses propagate's machinery (posterior vs. building checks, deterministic
-chunks, executors, the resumable Parquet store, :class:`~structures.responses.ResponseSet`), so
+chunks, executors, the resumable Parquet store, :class:`~structures.propagation.responses.ResponseSet`), so
 the summaries, exceedance, fragility and plots work unchanged.  The table's columns:
 
 * the ResponseSet columns, with their plan meaning: ``iso_disp_peak_m`` is the maximum **plan**
@@ -16,7 +16,7 @@ the summaries, exceedance, fragility and plots work unchanged.  The table's colu
   ``drift_ratio_y_max``, ``floor_acc_x_max_ms2``, ``floor_acc_y_max_ms2``,
   ``base_shear_x_peak_kN``, ``base_shear_y_peak_kN``;
 * ``total_max_disp_m``: the plan displacement times the optional torsional amplification
-  (:class:`structures.plan_design.TorsionAmplification`; 1 when not given: no torsion).
+  (:class:`structures.propagation.plan_design.TorsionAmplification`; 1 when not given: no torsion).
 
 :func:`suite_design` turns the table into the code's design values over the suite per draw (the
 average for 7 or more pairs, the maximum for fewer) and :func:`design_distribution` their
@@ -37,9 +37,10 @@ import pandas as pd
 
 from rrfrei.gap.design import bound_params
 from rrfrei.laws import get as get_law
-from structures.executors import set_threads
-from structures.inputs import resolve_building, resolve_scales
-from structures.plan_design import (
+from structures.dynamics.plan_history import plan_time_history_batch
+from structures.propagation.executors import set_threads
+from structures.propagation.inputs import resolve_building, resolve_scales
+from structures.propagation.plan_design import (
     ANSWERS,
     TorsionAmplification,
     check_plan_law,
@@ -49,8 +50,7 @@ from structures.plan_design import (
     suite_value,
     torsion_factor,
 )
-from structures.plan_history import plan_time_history_batch
-from structures.propagate import (
+from structures.propagation.propagate import (
     check_run_options,
     input_fingerprint,
     make_chunks,
@@ -58,8 +58,8 @@ from structures.propagate import (
     response_set,
     run_chunks,
 )
-from structures.responses import ResponseSet, extrapolated
-from structures.summaries import QUANTILES
+from structures.propagation.responses import ResponseSet, extrapolated
+from structures.propagation.summaries import QUANTILES
 
 __all__ = ["ANSWER_COLUMNS", "check_plan_law", "design_distribution", "propagate_pairs", "resolve_pairs",
            "run_plan_chunk", "suite_design"]
@@ -72,7 +72,7 @@ ANSWER_COLUMNS = {
     "base_shear_x_max_kN": "base_shear_x_peak_kN",
     "base_shear_y_max_kN": "base_shear_y_peak_kN",
 }
-"""The code's answers (:data:`structures.plan_design.ANSWERS`) -> their column in the table."""
+"""The code's answers (:data:`structures.propagation.plan_design.ANSWERS`) -> their column in the table."""
 
 
 # ----------------------------------------------------------------------------- the task
@@ -83,7 +83,7 @@ def run_plan_chunk(building, pair, scale: float, params: np.ndarray, simulate: C
     By default all draws run at once in :func:`structures.plan_time_history_batch` (Numba
     ``prange``; a run that fails holds NaN demands and ``converged`` False).  With ``simulate``
     (``simulate(building, law, params, ground) -> plan response``) each draw is one call, read by
-    :func:`structures.plan_design.plan_arrays`; a ``RuntimeError`` (e.g.
+    :func:`structures.propagation.plan_design.plan_arrays`; a ``RuntimeError`` (e.g.
     :class:`structures.ConvergenceError`) marks the run as not converged.
     """
     set_threads(threads)
@@ -183,7 +183,7 @@ def propagate_pairs(
 ) -> ResponseSet:
     """Run posterior draws of the isolator law through the plan building under record pairs.
 
-    Parameters are those of :func:`structures.propagate.propagate`, except:
+    Parameters are those of :func:`structures.propagation.propagate.propagate`, except:
 
     pairs
         Record pairs (see :func:`resolve_pairs`): bundled pair names, ``"A.AT2+B.AT2"``, or
@@ -264,9 +264,9 @@ def propagate_pairs(
 def suite_design(rs: ResponseSet, answers: Sequence[str] = ANSWERS) -> pd.DataFrame:
     """The code's design value over the suite of pairs, per (scale, draw).
 
-    For each answer (:data:`structures.plan_design.ANSWERS`, read from the column
+    For each answer (:data:`structures.propagation.plan_design.ANSWERS`, read from the column
     :data:`ANSWER_COLUMNS`), the pairs' values of one draw combine by
-    :func:`structures.plan_design.suite_value`: the average for 7 or more pairs, the maximum for
+    :func:`structures.propagation.plan_design.suite_value`: the average for 7 or more pairs, the maximum for
     fewer.  A draw that did not converge on some pair has NaN design values.
 
     Returns columns ``scale, sample, rule, n_pairs`` and the answers.
@@ -292,7 +292,7 @@ def design_distribution(rs: ResponseSet, answers: Sequence[str] = ANSWERS) -> pd
     """Percentiles over the posterior draws of the suite design values (:func:`suite_design`).
 
     Returns columns ``answer, scale, rule, n`` (draws with a value), ``mean`` and the
-    percentiles of :data:`structures.summaries.QUANTILES`.
+    percentiles of :data:`structures.propagation.summaries.QUANTILES`.
     """
     d = suite_design(rs, answers)
     rows = []

@@ -1,7 +1,7 @@
 """Where the chunks of a propagation run: here, or on any executor with ``.submit``.
 
 :func:`run_chunk` is the task: one record x one scale x a block of parameter draws through the
-batched Newmark kernel (:func:`structures.history.time_history_batch`, Numba ``prange`` over the
+batched Newmark kernel (:func:`structures.dynamics.history.time_history_batch`, Numba ``prange`` over the
 draws).  The other functions adapt ``concurrent.futures`` executors and a
 ``dask.distributed.Client`` to one interface.  A task on an executor sets its Numba thread count
 to ``max(1, cores // workers)`` so that threads x workers never exceeds the cores.
@@ -17,7 +17,7 @@ from concurrent.futures import as_completed as futures_completed
 import numba
 import numpy as np
 
-from structures.history import time_history_batch
+from structures.dynamics.history import time_history_batch
 
 __all__ = ["as_completed", "is_dask", "run_chunk", "set_threads", "submit", "workers"]
 

@@ -45,7 +45,7 @@ class ParquetStore:
     path
         Directory (created if missing).
     fingerprint
-        Hex digest of the inputs (see :func:`structures.propagate.propagate`); compared with the
+        Hex digest of the inputs (see :func:`structures.propagation.propagate.propagate`); compared with the
         manifest of an existing store.
     description
         Human-readable summary of the inputs, stored in the manifest and quoted in the error when

@@ -1,4 +1,4 @@
-"""Plots of a :class:`structures.responses.ResponseSet`: distributions, exceedance, fragility.
+"""Plots of a :class:`structures.propagation.responses.ResponseSet`: distributions, exceedance, fragility.
 
 Each function takes the response set and returns the matplotlib figure it drew on (``ax`` given:
 its figure; else a new pyplot figure).  Axis labels carry units (:func:`label`).
@@ -12,10 +12,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from structures import summaries
+from structures.propagation import summaries
 
 if TYPE_CHECKING:
-    from structures.responses import ResponseSet
+    from structures.propagation.responses import ResponseSet
 
 __all__ = ["DEMAND_LABELS", "distributions", "exceedance", "fragility", "intensity_text", "label"]
 

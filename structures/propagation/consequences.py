@@ -23,9 +23,9 @@ import pandas as pd
 import ground_motions
 from rrfrei.gap.design import PropertyModification, bound_params
 from rrfrei.laws import get as get_law
-from structures.building import Isolator
-from structures.history import time_history_batch
-from structures.inputs import resolve_building, resolve_records
+from structures.building.shear_building import Isolator
+from structures.dynamics.history import time_history_batch
+from structures.propagation.inputs import resolve_building, resolve_records
 
 __all__ = ["BOUNDS", "building_consequences", "plot_consequences"]
 

@@ -37,8 +37,8 @@ import numpy as np
 import pandas as pd
 
 from rrfrei.calibration.checks import nrmse
-from structures.building import ShearBuilding
-from structures.history import ConvergenceError, time_history
+from structures.building.shear_building import ShearBuilding
+from structures.dynamics.history import ConvergenceError, time_history
 from structures.shake_table import ShakeTableRun
 
 __all__ = ["RunPrediction", "predict_run"]

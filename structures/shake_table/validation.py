@@ -1,10 +1,10 @@
 """Validation of the building-level gap diagnosis on buildings it was not written for (issue 27.7).
 
 Each case is a synthetic shake-table sequence from the independent generator
-(:mod:`structures.shake_table_synthetic`: plain-NumPy RK4, a withheld effect in a form the
+(:mod:`structures.shake_table.synthetic`: plain-NumPy RK4, a withheld effect in a form the
 catalogue does not hold verbatim, noise on every channel): the building is calibrated on the
 smaller runs and judged on the largest (beyond the calibrated amplitude), through the public
-entry point :func:`structures.shake_table_gap.shake_table_gap`, exactly as a user runs it on
+entry point :func:`structures.shake_table.gap.shake_table_gap`, exactly as a user runs it on
 real runs.  Scores over the cases (:func:`summarise`):
 
 * **top-1**: share of the effect cases whose verdict names an accepted effect for the withheld
@@ -17,7 +17,7 @@ real runs.  Scores over the cases (:func:`summarise`):
 
 Run (slow: minutes per case on 2 cores)::
 
-    python -m structures.shake_table_validation --out validation_building.csv --seeds 0 1 2
+    python -m structures.shake_table.validation --out validation_building.csv --seeds 0 1 2
 
 The CSV is appended case by case and read back on a rerun (finished cases are skipped), so a long
 run resumes.  Seeds draw the table motion and the noise.
@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from structures.shake_table_synthetic import SyntheticBuilding, synthetic_sequence, with_effect
+from structures.shake_table.synthetic import SyntheticBuilding, synthetic_sequence, with_effect
 
 __all__ = ["ACCEPTED", "FORMS", "run_case", "run_validation", "summarise"]
 
@@ -77,7 +77,7 @@ def candidates() -> list[str]:
     near rivals, and the system effects where the pipeline has them."""
     eff = ["degradation", "stiffening", "rate", "scragging", "rollover", "mullins"]
     try:
-        from structures.building_model import SYSTEM_EFFECTS  # the building-level diagnosis
+        from structures.shake_table.building_model import SYSTEM_EFFECTS  # the building-level diagnosis
     except ImportError:
         SYSTEM_EFFECTS = ()
     return eff + list(SYSTEM_EFFECTS)
@@ -94,7 +94,7 @@ def run_case(effect: str, seed: int, *, strength: float | None = None,
     the held-out isolator-displacement NRMSE before/after and its shrink, the diagnosis's shrink
     and interval (NaN when it reports none), and the wall time [s].
     """
-    from structures.shake_table_gap import shake_table_gap
+    from structures.shake_table.gap import shake_table_gap
 
     if effect not in FORMS:
         raise ValueError(f"effect = {effect!r} is unknown; expected one of {tuple(FORMS)}")

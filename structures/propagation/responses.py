@@ -3,8 +3,8 @@
 :class:`ResponseSet` holds one row per analysis (sample x record x scale) in prototype units and
 answers the questions asked of it: percentiles, the variance split between the isolator
 parameters and the records, exceedance probabilities and fragility curves
-(:mod:`structures.summaries`, :mod:`structures.fragility`); its plots are drawn by
-:mod:`structures.response_plots`.  :func:`chunk_table` turns the batched kernel's demand arrays
+(:mod:`structures.propagation.summaries`, :mod:`structures.propagation.fragility`); its plots are drawn by
+:mod:`structures.propagation.response_plots`.  :func:`chunk_table` turns the batched kernel's demand arrays
 of one chunk into the table's rows.
 
 Units: m, s, kN, tonnes; accelerations m/s^2; drift ratios dimensionless.
@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from structures import response_plots, summaries
-from structures.fragility import Fragility, fit_fragility
+from structures.propagation import response_plots, summaries
+from structures.propagation.fragility import Fragility, fit_fragility
 
 __all__ = ["MAIN_DEMANDS", "ResponseSet", "chunk_table"]
 
@@ -92,7 +92,7 @@ class ResponseSet:
     def summary(self, demands: str | Sequence[str] | None = None) -> pd.DataFrame:
         """Median, 16/84 and 2.5/97.5 percentiles per record and over all records, per scale.
 
-        See :func:`structures.summaries.percentiles` (converged runs only).
+        See :func:`structures.propagation.summaries.percentiles` (converged runs only).
         """
         return summaries.percentiles(self.table, self._check(demands), self.records)
 
@@ -102,7 +102,7 @@ class ResponseSet:
         Law of total variance over the crossed (sample x record) design, per scale:
         ``share_params = Var_theta(E[ln D | theta]) / Var(ln D)``,
         ``share_records = Var_r(E[ln D | r]) / Var(ln D)``, the rest is their interaction
-        (see :func:`structures.summaries.variance_split`).
+        (see :func:`structures.propagation.summaries.variance_split`).
         """
         return summaries.variance_split(self.table, self._check(demands))
 
@@ -116,7 +116,7 @@ class ResponseSet:
         """Lognormal fragility per limit, fitted across the scales by maximum likelihood.
 
         Baker (2015): the runs of all records and draws at one scale form a stripe; see
-        :func:`structures.fragility.fit_fragility`.  The intensity is the scale factor.
+        :func:`structures.propagation.fragility.fit_fragility`.  The intensity is the scale factor.
         """
         ex = self.exceedance(limits)
         ex = ex[ex["record"] == summaries.ALL]

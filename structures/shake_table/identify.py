@@ -119,7 +119,7 @@ class SuperstructureIdentification:
         story_heights : [m], one value or one per story (only for drift ratios).
         damping_ratio : zeta; None fits it to the identified c_j (clipped to [0, 0.3]).
         """
-        from structures.building import Isolator, ShearBuilding
+        from structures.building.shear_building import Isolator, ShearBuilding
 
         if not isinstance(isolator, Isolator):
             law = getattr(isolator, "law", None)

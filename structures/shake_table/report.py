@@ -1,4 +1,4 @@
-"""Markdown report and figures of :func:`structures.shake_table_gap.shake_table_gap`.
+"""Markdown report and figures of :func:`structures.shake_table.gap.shake_table_gap`.
 
 :func:`write_report` writes ``DIR/shake_table.md`` with, per held-out run, the figures
 ``loops_<run>.png`` (isolation-system force [kN] against isolator displacement [m]: measured,
@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from rrfrei.gap.report import verdict_text
-from structures.shake_table_gap import CHANNELS, UNITS, ShakeTableGap
+from structures.shake_table.gap import CHANNELS, UNITS, ShakeTableGap
 
 __all__ = ["figures", "runs_table", "write_report"]
 

@@ -3,8 +3,8 @@
 :func:`plan_time_history` (one analysis under a pair of horizontal ground components, full
 histories as a :class:`PlanResponse`) and :func:`plan_time_history_batch` (peak demands of many
 isolator parameter sets, in parallel) validate their inputs, build the named records of
-:mod:`structures.newmark_records` (one ``Chain`` per direction) and run the kernel
-:mod:`structures.plan_newmark` instantiated for the plan law (:mod:`rrfrei.laws.plan`) by
+:mod:`structures.dynamics.newmark_records` (one ``Chain`` per direction) and run the kernel
+:mod:`structures.dynamics.plan_newmark` instantiated for the plan law (:mod:`rrfrei.laws.plan`) by
 :func:`rrfrei.laws.specialise.instantiate`.
 
 The model: the shear building of :class:`structures.ShearBuilding` in two orthogonal horizontal
@@ -27,16 +27,15 @@ import numpy as np
 
 from rrfrei.laws import plan as plan_laws
 from rrfrei.laws import specialise
-from structures import energy as _energy
-from structures import plan_energy as _plan_energy
-from structures.building import ShearBuilding
-from structures.history import (
+from structures.building.shear_building import ShearBuilding
+from structures.dynamics import energy as _energy
+from structures.dynamics import plan_energy as _plan_energy
+from structures.dynamics.history import (
     _DEFAULT_LEVELS,
     _DEFAULT_MAX_ITER,
     ConvergenceError,
     Response,
     _model,
-    _solver,
     batch_demands,
     failure,
     first_row,
@@ -44,11 +43,12 @@ from structures.history import (
     param_rows,
     response,
     run_batch,
+    solver_settings,
 )
-from structures.newmark_records import Chain, Layer
-from structures.plan_newmark_records import PlanBatch, PlanHistories
+from structures.dynamics.newmark_records import Chain, Layer
+from structures.dynamics.plan_newmark_records import PlanBatch, PlanHistories
 
-TEMPLATE = "structures.plan_newmark"
+TEMPLATE = "structures.dynamics.plan_newmark"
 """The kernel template instantiated per plan law."""
 
 TORSION = (
@@ -73,7 +73,7 @@ class PlanResponse:
     x, y : :class:`structures.Response` of each direction: isolator displacement [m] and force
         [kN] components, floor displacements [m] and absolute accelerations [m/s^2], drifts [m]
         and drift ratios [-], base shear (story 1) [kN], the direction's energy terms [kN m]
-        (each direction balances on its own, :mod:`structures.plan_energy`).
+        (each direction balances on its own, :mod:`structures.dynamics.plan_energy`).
     isolator_plan_disp : (n,) isolator displacement in plan, sqrt(u_x^2 + u_y^2) [m] (the
         vector sum; the same under every bearing, no torsion).
     isolator_plan_disp_max : its maximum over time [m].
@@ -241,7 +241,7 @@ def _layer(building, pspec, params: np.ndarray) -> Layer:
 
 
 def kernel(pspec: plan_laws.PlanLawSpec) -> ModuleType:
-    """The plan Newmark kernel (:mod:`structures.plan_newmark`) instantiated for ``pspec``."""
+    """The plan Newmark kernel (:mod:`structures.dynamics.plan_newmark`) instantiated for ``pspec``."""
     return specialise.instantiate(TEMPLATE, {"plan_step": pspec.step}, f"plan_{pspec.name}")
 
 
@@ -263,7 +263,7 @@ def plan_time_history(
     """Nonlinear time history of ``building`` in plan under two horizontal ground components.
 
     Newmark (``gamma``, ``beta``) with Newton-Raphson on the coupled isolator's 2 x 2 tangent,
-    condensed onto the two base DOFs (:mod:`structures.plan_newmark`), started from rest; the
+    condensed onto the two base DOFs (:mod:`structures.dynamics.plan_newmark`), started from rest; the
     steps are those of OpenSees' Newmark + Newton + NormDispIncr on a 3-D lumped-mass model of the
     same building (``tests/opensees_plan_building.py``).  A ground motion along x alone gives the
     unidirectional :func:`structures.time_history` in x (bit for bit for the laws whose plan form
@@ -299,7 +299,7 @@ def plan_time_history(
     """
     pspec, p = _law(building, law, params)
     chain_x, chain_y = _chains(building, building_y)
-    solver = _solver(gamma, beta, tol, max_iter, max_subdivisions, False)
+    solver = solver_settings(gamma, beta, tol, max_iter, max_subdivisions, False)
     name, ag, h = _plan_ground(ground, dt)
     n, ndof = ag.shape[0], chain_x.mass.size
     hist = PlanHistories.allocate(n, ndof)
@@ -381,7 +381,7 @@ def plan_time_history_batch(
         P = param_rows(spec, params)
     P = np.ascontiguousarray(P)
     chain_x, chain_y = _chains(building, building_y)
-    solver = _solver(gamma, beta, tol, max_iter, max_subdivisions, False)
+    solver = solver_settings(gamma, beta, tol, max_iter, max_subdivisions, False)
     _, ag, h = _plan_ground(ground, dt)
     layer = _layer(building, pspec, first_row(P))
     res = run_batch(kernel(pspec).batch, (chain_x, chain_y, layer, P, ag, h, solver),

@@ -12,13 +12,13 @@ No torsion: each floor is one lumped mass at the centre of rigidity (no eccentri
 rotational DOF), so the directions couple only through the isolator.  Each step follows
 OpenSees' ``Newmark`` (displacement form, ``SRC/analysis/integrator/Newmark.cpp`` l.157-255)
 with ``Newton`` and ``NormDispIncr`` on the 2 (n + 1) horizontal DOFs, as the unidirectional
-kernel :mod:`structures.newmark` does (see there for the predictor and corrector formulas).
+kernel :mod:`structures.dynamics.newmark` does (see there for the predictor and corrector formulas).
 
 Condensation onto the two base DOFs
 -----------------------------------
 The unidirectional condensation applies to each chain: with K_L,d = K_d + g/(b h) C_d +
 1/(b h^2) M, phi_d = -K_ss,d^-1 K_s0,d (phi_d,0 = 1) and d_0,d = K_00,d + K_0s,d phi_d
-(:func:`structures.newmark_chain.condense`), the effective system K_eff du = R with
+(:func:`structures.dynamics.newmark_chain.condense`), the effective system K_eff du = R with
 K_eff = blockdiag(K_L,x, K_L,y) + [k_t on the base DOFs (0x, 0y)] (k_t the isolator's 2 x 2
 tangent dF_i/du_j) reduces to the 2 x 2 base system
 
@@ -31,15 +31,15 @@ l = a_yx / a_xx.  As in 1-D, after the first correction of a step the residual l
 DOFs alone, r_b = k_t,prev du_b,prev - (F - F_prev), and ||du||_2^2 = sum_d du_b,d^2 phi_d^T phi_d.
 With no excitation and no force in y (a record along x on a layer whose plan law gives F_y = 0
 and k_yx = 0 there), every y quantity is an exact zero and each x operation is that of
-:mod:`structures.newmark`, so the x response is the unidirectional one bit for bit wherever the
+:mod:`structures.dynamics.newmark`, so the x response is the unidirectional one bit for bit wherever the
 plan law is its unidirectional law bit for bit along the axis (bouc_wen: to rounding).
 
 A step whose Newton iteration fails (no convergence in ``max_iter``, a law status < 0 or a
 non-finite force) is retried from the committed state in 2, 4, ... 2^max_levels equal substeps
 with both ground accelerations interpolated linearly.
 
-Energy per direction (relative formulation, trapezoidal increments; :mod:`structures.energy`,
-:mod:`structures.plan_energy`): E_I,d = -sum (1/2)(a_g,d,n + a_g,d,n+1) 1^T M du_d, viscous
+Energy per direction (relative formulation, trapezoidal increments; :mod:`structures.dynamics.energy`,
+:mod:`structures.dynamics.plan_energy`): E_I,d = -sum (1/2)(a_g,d,n + a_g,d,n+1) 1^T M du_d, viscous
 E_D,d = sum (1/2)(C v_n + C v_n+1)^T du_d, isolator E_H,d = sum (1/2)(F_d,n + F_d,n+1) du_0,d
 (E_H,x + E_H,y = int F . du_b, the line integral in plan); kinetic and strain energies from the
 state.  Each direction balances on its own (its equations of motion dotted with du_d).
@@ -61,9 +61,9 @@ import numpy as np
 from numba import njit, prange
 
 from rrfrei.laws.specialise import unbound
-from structures import newmark_chain as core
-from structures.newmark_records import Layer
-from structures.plan_newmark_records import PlanHistories, PlanSummary
+from structures.dynamics import newmark_chain as core
+from structures.dynamics.newmark_records import Layer
+from structures.dynamics.plan_newmark_records import PlanHistories, PlanSummary
 
 SLOTS = ("plan_step",)
 plan_step = unbound("plan_step")
@@ -73,25 +73,25 @@ plan_step = unbound("plan_step")
 def integrate(chain_x, chain_y, layer, ag, dt, solver, hist):
     """One analysis from rest under the ground accelerations ``ag`` [m/s^2] every ``dt`` [s].
 
-    Each direction's chain moves by the shared core :mod:`structures.newmark_chain`, exactly as
+    Each direction's chain moves by the shared core :mod:`structures.dynamics.newmark_chain`, exactly as
     the unidirectional kernel moves its one chain; the 2 x 2 Newton iteration on the base DOFs,
     where the plan law is called, is written out here.
 
     Parameters
     ----------
-    chain_x, chain_y : :class:`structures.newmark_records.Chain` of each direction (the same
+    chain_x, chain_y : :class:`structures.dynamics.newmark_records.Chain` of each direction (the same
         ``mass`` and ``story_height``; stiffness and damping may differ).
-    layer : :class:`structures.newmark_records.Layer` (the coupled isolators; force
+    layer : :class:`structures.dynamics.newmark_records.Layer` (the coupled isolators; force
         count s^2 F_law(u / s, v / s), tangent count s k_law).
     ag : (nt, 2) ground acceleration (x, y) at the output steps [m/s^2].
     dt : output step [s].
-    solver : :class:`structures.newmark_records.Solver` (``robust`` unused).
-    hist : :class:`structures.plan_newmark_records.PlanHistories` with nt steps (written), or
+    solver : :class:`structures.dynamics.newmark_records.Solver` (``robust`` unused).
+    hist : :class:`structures.dynamics.plan_newmark_records.PlanHistories` with nt steps (written), or
         zero steps (peaks only).
 
     Returns
     -------
-    :class:`structures.plan_newmark_records.PlanSummary` (peaks, status, failing step).
+    :class:`structures.dynamics.plan_newmark_records.PlanSummary` (peaks, status, failing step).
     """
     m = chain_x.mass
     n = m.shape[0]
@@ -286,8 +286,8 @@ def batch(chain_x, chain_y, layer, params, ag, dt, solver, n_blocks, out):
 
     The runs are split into ``n_blocks`` contiguous blocks run in parallel (Numba ``prange``),
     one analysis per thread at a time; ``layer`` gives the bearings (its ``params`` unused).
-    Writes run r's :class:`structures.plan_newmark_records.PlanSummary` into row r of the fields
-    of ``out`` (:class:`structures.plan_newmark_records.PlanBatch`).
+    Writes run r's :class:`structures.dynamics.plan_newmark_records.PlanSummary` into row r of the fields
+    of ``out`` (:class:`structures.dynamics.plan_newmark_records.PlanBatch`).
     """
     runs = params.shape[0]
     n = chain_x.mass.shape[0]

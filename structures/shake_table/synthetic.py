@@ -3,7 +3,7 @@
 Validation that cannot be tuned to (issue 27.7) needs buildings whose truth is known and whose
 equations are *not* the project's: this module simulates a shear building on a hysteretic
 isolation layer in plain NumPy (fixed-step classical Runge-Kutta on the equations of motion, the
-isolator's hysteretic variable as one more state), with no call to :mod:`structures.newmark`,
+isolator's hysteretic variable as one more state), with no call to :mod:`structures.dynamics.newmark`,
 the law kernels or any project integrator, and returns :class:`structures.shake_table.ShakeTableRun`
 objects as the readers do, so the whole shake-table pipeline runs on them unchanged.
 

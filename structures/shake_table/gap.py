@@ -2,7 +2,7 @@
 
 :func:`shake_table_gap` answers, on real runs, *does my calibrated building predict the next,
 larger earthquake, where does it miss, why, and what fixes it?*  The model is the building
-(:mod:`structures.building_model`), not the isolator loop:
+(:mod:`structures.shake_table.building_model`), not the isolator loop:
 
 1. **Superstructure.** From :func:`structures.identify_superstructure` on the calibration run
    where it holds (every story R^2 >= 0.8 and k, c > 0; the best such run by its worst R^2), or
@@ -13,7 +13,7 @@ larger earthquake, where does it miss, why, and what fixes it?*  The model is th
    isolator law (equation error, :class:`rrfrei.gap.model.IsolatorModel`); ``law="auto"`` keeps
    the law of :data:`AUTO_LAWS` with the highest leave-one-cycle-out elpd.  This fit starts the
    building's calibration and is reported as the comparison row (``loop_fit``).
-3. **Output-error calibration and diagnosis.** :class:`structures.building_model.BuildingModel`
+3. **Output-error calibration and diagnosis.** :class:`structures.shake_table.building_model.BuildingModel`
    simulates the building driven by every run's measured table acceleration, in order, ``pad_s``
    seconds of rest between runs, the isolators' state carried; the law's, the superstructure's
    stiffness scale and damping, and the effects' parameters are fitted to the measured isolator
@@ -61,8 +61,10 @@ from rrfrei.gap.diagnose import Checkpoint, GapReport, diagnose, loco
 from rrfrei.gap.model import LEVEL, RETRY_SUBSTEPS, IsolatorModel, simulate_retry
 from rrfrei.io import ShearTest
 from rrfrei.jsonable import number as _num
-from structures.building import Isolator, ShearBuilding
-from structures.building_model import (
+from structures.building.shear_building import Isolator, ShearBuilding
+from structures.dynamics.history import ConvergenceError, time_history
+from structures.shake_table import ShakeTableRun, available_runs, load_run, read_run
+from structures.shake_table.building_model import (
     SYSTEM_EFFECTS,
     BuildingData,
     BuildingFit,
@@ -70,9 +72,7 @@ from structures.building_model import (
     calibration_test,
     concatenate_runs,
 )
-from structures.history import ConvergenceError, time_history
-from structures.identify import identify_superstructure
-from structures.shake_table import ShakeTableRun, available_runs, load_run, read_run
+from structures.shake_table.identify import identify_superstructure
 
 __all__ = ["AUTO_LAWS", "BNCS_ORDER", "CHANNELS", "ShakeTableGap", "SequencePrediction",
            "building_prediction", "predict_sequence", "resolve_run", "run_metrics", "shake_table_gap"]
@@ -650,7 +650,7 @@ def shake_table_gap(
         stiffness, damping) is used instead of the identified one; its isolator is replaced.
     rate_hz : rate of the isolation loops of the loop fit (the start) [Hz].
     effects : candidates of the diagnosis (default: every catalogue effect and every system
-        effect, :data:`structures.building_model.SYSTEM_EFFECTS`); ``[]``: calibration only.
+        effect, :data:`structures.shake_table.building_model.SYSTEM_EFFECTS`); ``[]``: calibration only.
     draws : posterior draws per building fit (each is a simulation of the runs).
     n_draws : accepted for compatibility (the number of draws is ``draws``).
     pad_s : rest between runs in the building's record [s].

@@ -5,7 +5,7 @@ connection, a bearing of another size without the right ``length_scale``) runs t
 building without complaint and gives demand distributions that mean nothing.  Two physical
 checks catch that before thousands of analyses are spent on it; each returns a sentence that
 names the numbers, and :func:`structures.propagate` turns it into a :class:`SpecimenWarning`
-and a note of the :class:`~structures.propagate.ResponseSet`:
+and a note of the :class:`~structures.propagation.propagate.ResponseSet`:
 
 1. **Period shift.**  An isolation layer works by lengthening the period well beyond the
    superstructure's own: the isolated period at the tested displacement, with the layer

@@ -4,7 +4,7 @@ The equations of motion of each direction d = x, y (relative to the ground),
 
     M a_d + C_d v_d + K_d u_d + F_d(u_b, v_b) e_0 = -M 1 a_g,d,
 
-dotted with du_d and integrated give one balance per direction (:mod:`structures.energy`):
+dotted with du_d and integrated give one balance per direction (:mod:`structures.dynamics.energy`):
 
     E_I,d = E_K,d + E_D,d + E_H,d + E_S,d,
 
@@ -18,14 +18,14 @@ with E_H the work done on the isolator layer along its orbit: its hysteretic dis
 circular yield surface qd times the plastic path length, not the sum of the two axes' own
 loops) plus its recoverable elastic energy.  Trapezoidal increments make every term the exact
 work of the average-acceleration Newmark scheme (g = 1/2, b = 1/4), so the imbalance is the
-Newton residual only (:mod:`structures.plan_newmark`).  Units: kN m.
+Newton residual only (:mod:`structures.dynamics.plan_newmark`).  Units: kN m.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from structures.energy import TERMS, as_dict, balance_error
+from structures.dynamics.energy import TERMS, as_dict, balance_error
 
 __all__ = ["TERMS", "balance_error", "by_direction", "total"]
 

@@ -1,7 +1,7 @@
 """One direction of the Newmark step on a shear chain condensed onto its base: the shared core.
 
-Both time-history kernels, the unidirectional :mod:`structures.newmark` (one chain) and the plan
-:mod:`structures.plan_newmark` (one chain per horizontal direction, coupled only through the
+Both time-history kernels, the unidirectional :mod:`structures.dynamics.newmark` (one chain) and the plan
+:mod:`structures.dynamics.plan_newmark` (one chain per horizontal direction, coupled only through the
 isolator), move each chain with the functions of this module; they differ only in the Newton
 iteration on the base DOF(s), where the isolator law is called (a scalar iteration in 1-D, a
 2 x 2 system in plan).  So every equation below is written once and each direction of the plan
@@ -15,7 +15,7 @@ and the step is OpenSees' ``Newmark`` (displacement form, ``SRC/analysis/integra
 l.157-255) with ``Newton`` and ``NormDispIncr``; with K_L = K_s + g/(b h) C + 1/(b h^2) M split
 into the base row/column and the superstructure block K_ss (tridiagonal),
 phi = -K_ss^-1 K_s0 (phi_0 = 1) and d_0 = K_00 + K_0s phi (derivation in
-:mod:`structures.newmark`):
+:mod:`structures.dynamics.newmark`):
 
 * :func:`condense`: d_0, phi, phi^T phi and K_ss^-1 (depend on the step size only);
 * :func:`linear_residual`: the predictor u = u_n, v = cv v_n + cva a_n, a = ca a_n + cav v_n,
@@ -24,7 +24,8 @@ phi = -K_ss^-1 K_s0 (phi_0 = 1) and d_0 = K_00 + K_0s phi (derivation in
 * :func:`add_superstructure_norm`: ||du_s||^2 of the first correction, du_s = K_ss^-1 R_s +
   phi_s du_0 (needed only when the base correction alone is below the tolerance);
 * :func:`commit`: the superstructure moved by its predictor plus K_ss^-1 R_s + phi (sum of the
-  base corrections), with the input and viscous energy increments (trapezoidal, :mod:`structures.energy`);
+  base corrections), with the input and viscous energy increments (trapezoidal,
+  :mod:`structures.dynamics.energy`);
 * :func:`output_step`: kinetic and strain energy, story-1 shear, peak drifts and floor
   accelerations, and the history rows of an output step.
 

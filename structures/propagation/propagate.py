@@ -16,13 +16,14 @@ Work is cut into deterministic chunks (record, scale, block of ``chunk_size`` sa
 
 Every analysis is independent and deterministic, so the same inputs and seed give the same table
 whatever runs the chunks.  With ``store=DIR`` finished chunks go to a Parquet store
-(:class:`structures.store.ParquetStore`); rerunning with the same store skips them.
+(:class:`structures.propagation.store.ParquetStore`); rerunning with the same store skips them.
 
-The pieces live in modules named for their idea: :mod:`structures.inputs` (building, records,
-scales, posterior draws), :mod:`structures.executors` (where chunks run, :func:`run_chunk`),
-:mod:`structures.store` (the Parquet store), :mod:`structures.responses` (:class:`ResponseSet`)
-and :mod:`structures.response_plots` (its figures).  This module is the workflow; it re-exports
-their public names, so ``from structures.propagate import ResponseSet, SpectrumScaling`` works.
+The pieces live in modules named for their idea: :mod:`structures.propagation.inputs` (building, records,
+scales, posterior draws), :mod:`structures.propagation.executors` (where chunks run, :func:`run_chunk`),
+:mod:`structures.propagation.store` (the Parquet store),
+:mod:`structures.propagation.responses` (:class:`ResponseSet`)
+and :mod:`structures.propagation.response_plots` (its figures).  This module is the workflow; it re-exports
+their public names, so ``from structures.propagation.propagate import ResponseSet, SpectrumScaling`` works.
 
 Units: m, s, kN, tonnes; accelerations m/s^2; drift ratios dimensionless.
 """
@@ -43,8 +44,9 @@ import pandas as pd
 
 from ground_motions import scale_to_spectrum
 from rrfrei.laws import get as get_law
-from structures.executors import as_completed, run_chunk, submit, workers
-from structures.inputs import (
+from structures.building.specimen import SpecimenWarning, specimen_checks
+from structures.propagation.executors import as_completed, run_chunk, submit, workers
+from structures.propagation.inputs import (
     SpectrumScaling,
     pack_draws,
     resolve_building,
@@ -52,10 +54,9 @@ from structures.inputs import (
     resolve_records,
     resolve_scales,
 )
-from structures.response_plots import DEMAND_LABELS, label
-from structures.responses import MAIN_DEMANDS, ResponseSet, chunk_table
-from structures.specimen import SpecimenWarning, specimen_checks
-from structures.store import ParquetStore
+from structures.propagation.response_plots import DEMAND_LABELS, label
+from structures.propagation.responses import MAIN_DEMANDS, ResponseSet, chunk_table
+from structures.propagation.store import ParquetStore
 
 __all__ = ["DEMAND_LABELS", "MAIN_DEMANDS", "ResponseSet", "SpectrumScaling", "label", "propagate",
            "run_chunk"]
@@ -182,7 +183,7 @@ def propagate(
 
 
 # ---------------------------------------------------------------------------------------------
-# the machinery shared with structures.plan_propagate (pairs of records on the plan building)
+# the machinery shared with structures.propagation.plan_propagate (pairs of records on the plan building)
 # ---------------------------------------------------------------------------------------------
 def check_run_options(n_samples, chunk_size, seed, executor) -> None:
     """ValueError naming a bad ``n_samples``, ``chunk_size``, ``seed`` or ``executor``."""
@@ -216,7 +217,7 @@ class PreparedRun:
 def prepare_run(posterior, bld, n_samples: int, seed: int, limits) -> PreparedRun:
     """Draw the posterior, check its law against the building's isolator, set the limits.
 
-    The specimen checks (:func:`structures.specimen.specimen_checks`) warn, never refuse.
+    The specimen checks (:func:`structures.building.specimen.specimen_checks`) warn, never refuse.
     """
     law_name, draws, cal_range = resolve_posterior(posterior, n_samples, seed)
     iso = bld.isolator

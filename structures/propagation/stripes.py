@@ -8,7 +8,8 @@ matters.  At stripe ``j`` every record ``r`` is scaled by ``x_j / IM_r`` so that
 share the intensity ``x_j`` (multiple stripe analysis: Jalayer & Cornell 2009; Baker 2015,
 section "Multiple stripe analysis"); every posterior draw of the isolator law runs on every
 scaled record, and the lognormal fragility ``P(D > limit | IM = x) = Phi(ln(x / theta) / beta)``
-is fitted by maximum likelihood over the stripe counts (:func:`structures.fragility.fit_fragility`,
+is fitted by maximum likelihood over the stripe counts
+(:func:`structures.propagation.fragility.fit_fragility`,
 Baker 2015 eqs. 11-12).
 
 Stripes that span the range: unless the levels are given, a pilot analysis with the posterior
@@ -30,11 +31,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ground_motions import G, Record, response_spectrum
-from structures.fragility import Fragility
-from structures.history import time_history_batch
-from structures.inputs import pack_draws, resolve_building, resolve_posterior, resolve_records
-from structures.propagate import DEFAULT_DRIFT_LIMIT, propagate
-from structures.responses import ResponseSet
+from structures.dynamics.history import time_history_batch
+from structures.propagation.fragility import Fragility
+from structures.propagation.inputs import pack_draws, resolve_building, resolve_posterior, resolve_records
+from structures.propagation.propagate import DEFAULT_DRIFT_LIMIT, propagate
+from structures.propagation.responses import ResponseSet
 
 __all__ = ["IntensityMeasure", "StripeAnalysis", "crossing_intensities", "multiple_stripe_analysis",
            "spanning_levels"]
@@ -196,7 +197,7 @@ def multiple_stripe_analysis(
     Parameters
     ----------
     posterior, building, records, n_samples, seed, progress, chunk_size
-        As in :func:`structures.propagate.propagate` (records: bundled names, paths or
+        As in :func:`structures.propagation.propagate.propagate` (records: bundled names, paths or
         ``Record``\\ s).
     im
         The intensity measure; default ``Sa(T_iso, 5 %)`` with ``T_iso`` the isolated period at

@@ -1,10 +1,10 @@
-"""The named outputs of the plan-building Newmark kernel (:mod:`structures.plan_newmark`).
+"""The named outputs of the plan-building Newmark kernel (:mod:`structures.dynamics.plan_newmark`).
 
-The inputs are the records of the unidirectional kernel (:mod:`structures.newmark_records`): one
-:class:`~structures.newmark_records.Chain` per horizontal direction (x, y), one
-:class:`~structures.newmark_records.Layer` for the coupled isolator layer and one
-:class:`~structures.newmark_records.Solver`.  The histories are the unidirectional
-:class:`~structures.newmark_records.Histories` with a leading axis of length 2 for the direction
+The inputs are the records of the unidirectional kernel (:mod:`structures.dynamics.newmark_records`): one
+:class:`~structures.dynamics.newmark_records.Chain` per horizontal direction (x, y), one
+:class:`~structures.dynamics.newmark_records.Layer` for the coupled isolator layer and one
+:class:`~structures.dynamics.newmark_records.Solver`.  The histories are the unidirectional
+:class:`~structures.dynamics.newmark_records.Histories` with a leading axis of length 2 for the direction
 (0: x, 1: y).  They live in a module of their own so that every per-law instance of the template
 shares one class for each (see :mod:`rrfrei.laws.specialise`).  Units: kN, m, s, tonnes.
 """
@@ -15,11 +15,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from structures.newmark_records import Histories, batch_record
+from structures.dynamics.newmark_records import Histories, batch_record
 
 
 class PlanHistories(Histories):
-    """:class:`~structures.newmark_records.Histories` per direction: ``disp`` (2, nt, ndof),
+    """:class:`~structures.dynamics.newmark_records.Histories` per direction: ``disp`` (2, nt, ndof),
     ``energy`` (2, 5, nt), ...; ``iterations``, ``levels`` and ``robust`` (nt,) are shared
     (``robust`` stays False: the plan laws have no robust local solve)."""
 

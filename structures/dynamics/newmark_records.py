@@ -1,4 +1,4 @@
-"""The named inputs and outputs of the Newmark kernel (:mod:`structures.newmark`).
+"""The named inputs and outputs of the Newmark kernel (:mod:`structures.dynamics.newmark`).
 
 Plain named tuples of arrays and scalars, which Numba passes to and returns from compiled code
 (and caches) like any tuple: a field is read by name at no cost.  They live in a module of their
@@ -15,10 +15,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from structures.energy import TERMS as ENERGY_TERMS
+from structures.dynamics.energy import TERMS as ENERGY_TERMS
 
 N_ENERGY = len(ENERGY_TERMS)
-"""Columns of :attr:`Histories.energy`: the terms of :data:`structures.energy.TERMS`."""
+"""Columns of :attr:`Histories.energy`: the terms of :data:`structures.dynamics.energy.TERMS`."""
 
 
 class Chain(NamedTuple):
@@ -41,7 +41,7 @@ class Layer(NamedTuple):
     """The isolation layer: ``count`` bearings of one law, scaled by similitude.
 
     The layer force is ``count scale^2 F_law(u / scale, v / scale)`` and its tangent
-    ``count scale k_law(u / scale)`` (equal stress, see :mod:`structures.building`).
+    ``count scale k_law(u / scale)`` (equal stress, see :mod:`structures.building.shear_building`).
     """
 
     params: np.ndarray
@@ -75,7 +75,7 @@ class Histories(NamedTuple):
     """Output histories, one row per output step (nt of them), or zero rows: peaks only.
 
     The shapes are those of the unidirectional kernel; the plan kernel's
-    (:class:`structures.plan_newmark_records.PlanHistories`) put a leading direction axis
+    (:class:`structures.dynamics.plan_newmark_records.PlanHistories`) put a leading direction axis
     (2: x, y) on every field but ``iterations``, ``levels`` and ``robust``, so that
     :meth:`direction` is a unidirectional record.
     """

@@ -2,8 +2,8 @@
 
 :func:`time_history` (one analysis, full histories as a :class:`Response`) and
 :func:`time_history_batch` (peak demands of many isolator parameter sets, in parallel) validate
-their inputs, build the named records of :mod:`structures.newmark_records`, and run the Newmark
-kernel (:mod:`structures.newmark`) instantiated for the building's isolator law by
+their inputs, build the named records of :mod:`structures.dynamics.newmark_records`, and run the Newmark
+kernel (:mod:`structures.dynamics.newmark`) instantiated for the building's isolator law by
 :func:`rrfrei.laws.specialise.instantiate`, so each law's step is compiled into its own copy of
 the kernel (only the laws used are compiled).  Units: kN, m, s, tonnes.
 """
@@ -19,13 +19,13 @@ import numpy as np
 
 from rrfrei.laws import STATUS_MESSAGES, LawSpec, specialise
 from rrfrei.simulate import deviation_warning, robust_hint, robust_local_solve
-from structures import energy as _energy
-from structures.building import ShearBuilding
-from structures.newmark_records import Batch, Chain, Histories, Layer, Solver
+from structures.building.shear_building import ShearBuilding
+from structures.dynamics import energy as _energy
+from structures.dynamics.newmark_records import Batch, Chain, Histories, Layer, Solver
 
 _DEFAULT_MAX_ITER = 50
 _DEFAULT_LEVELS = 6
-TEMPLATE = "structures.newmark"
+TEMPLATE = "structures.dynamics.newmark"
 """The kernel template instantiated per law."""
 
 
@@ -48,7 +48,7 @@ class Response:
     floor_accel_abs : (n, stories) absolute floor acceleration [m/s^2], roof last.
     base_accel_abs : (n,) absolute acceleration of the base slab [m/s^2].
     base_shear : (n,) shear force in story 1 (spring + dashpot), i.e. above the isolators [kN].
-    energy : dict of (n,) energy histories [kN m] (see :mod:`structures.energy`).
+    energy : dict of (n,) energy histories [kN m] (see :mod:`structures.dynamics.energy`).
     energy_error : max |imbalance| / max |input energy| [-].
     newton_iterations : (n,) Newton iterations per output step (summed over substeps).
     subdivided_steps : indices of the output steps that needed substeps.
@@ -94,8 +94,10 @@ class Response:
         }
 
 
-def _solver(gamma, beta, tol, max_iter, max_subdivisions, robust: bool) -> Solver:
-    """The validated solver settings."""
+def solver_settings(gamma, beta, tol, max_iter, max_subdivisions, robust: bool) -> Solver:
+    """The validated settings of the Newmark step and its Newton iteration (:class:`Solver`):
+    ``gamma``, ``beta`` of Newmark, the displacement tolerance ``tol`` [m], Newton iterations, step
+    subdivisions and whether the law's robust local solve replaces a failed local iteration."""
     g = float(gamma)
     b = float(beta)
     if not (np.isfinite(g) and g > 0.0):
@@ -188,7 +190,7 @@ def _layer(building, params: np.ndarray) -> Layer:
 
 
 def kernel(spec: LawSpec) -> ModuleType:
-    """The Newmark kernel (:mod:`structures.newmark`) instantiated for the law ``spec``."""
+    """The Newmark kernel (:mod:`structures.dynamics.newmark`) instantiated for the law ``spec``."""
     return specialise.instantiate(TEMPLATE, specialise.bindings(spec), spec.name)
 
 
@@ -265,7 +267,7 @@ def time_history(
 
     Newmark (``gamma``, ``beta``) with Newton-Raphson on the isolator tangent, started from rest
     (a_0 = -a_g(0) exactly); the steps are those of OpenSees' Newmark + Newton + NormDispIncr
-    (see :mod:`structures.newmark`), so with ``record.accel[0] == 0`` the result matches an
+    (see :mod:`structures.dynamics.newmark`), so with ``record.accel[0] == 0`` the result matches an
     openseespy model of the same building (``record.with_leading_zero()``).
 
     Parameters
@@ -292,7 +294,8 @@ def time_history(
     ConvergenceError : a step failed at every subdivision; names the record, time and state.
     """
     spec, chain = _model(building)
-    solver = _solver(gamma, beta, tol, max_iter, max_subdivisions, robust_local_solve(spec, local_solver))
+    solver = solver_settings(gamma, beta, tol, max_iter, max_subdivisions,
+                             robust_local_solve(spec, local_solver))
     iso = building.isolator
     p = iso.packed()
     name, ag, h = _ground(record, dt)
@@ -353,7 +356,8 @@ def time_history_batch(
     (0 = converged) and ``converged`` (bool).  Runs that failed hold NaN demands.
     """
     spec, chain = _model(building)
-    solver = _solver(gamma, beta, tol, max_iter, max_subdivisions, robust_local_solve(spec, local_solver))
+    solver = solver_settings(gamma, beta, tol, max_iter, max_subdivisions,
+                             robust_local_solve(spec, local_solver))
     name, ag, h = _ground(record, dt)
     P = param_rows(spec, params)
     res = run_batch(kernel(spec).batch, (chain, _layer(building, first_row(P)), P, ag, h, solver),
