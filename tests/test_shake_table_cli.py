@@ -27,7 +27,8 @@ from rrfrei.laws import get
 from structures.building.shear_building import Isolator, ShearBuilding
 from structures.shake_table import BNCS_WEIGHTS_KN, ShakeTableRun, write_run
 from structures.shake_table import gap as stg
-from structures.shake_table.gap import CHANNELS, predict_sequence, simulate_law
+from structures.shake_table.gap import simulate_law
+from structures.shake_table.sequence import CHANNELS, predict_sequence
 
 KEYS = {"law", "diagnosis", "verdict", "evidence", "combination", "where", "ranking", "extrapolation",
         "gap_before", "gap_after", "coverage", "band_width", "runs", "loop_fit", "calibration", "shrink"}

@@ -20,15 +20,15 @@ from rrfrei.gap.model import IsolatorFit
 from rrfrei.laws import get
 from structures.building.shear_building import Isolator, ShearBuilding
 from structures.shake_table import BNCS_WEIGHTS_KN, ShakeTableRun
-from structures.shake_table.building_model import (
+from structures.shake_table.building_model import BuildingModel
+from structures.shake_table.sequence import CHANNELS, building_prediction, run_metrics
+from structures.shake_table.simulation import (
     FIT_CHANNELS,
     BuildingData,
-    BuildingModel,
     Superstructure,
     calibration_test,
     measured_channels,
 )
-from structures.shake_table.gap import CHANNELS, building_prediction, run_metrics
 
 MASSES = np.array(BNCS_WEIGHTS_KN) / 9.81
 K = np.array([125e3, 95e3, 98e3, 108e3, 60e3])
@@ -157,7 +157,7 @@ def test_a_failing_simulation_is_a_bad_point_never_an_exception(truth, monkeypat
 
 def test_band_width_and_coverage_follow_their_definitions(truth):
     """A band of +-1 about a perfect median covers every sample and is 2 / RMS wide."""
-    from structures.shake_table.gap import SequencePrediction
+    from structures.shake_table.sequence import SequencePrediction
 
     _, runs = truth
     meas = {"run1": measured_channels(runs[0])}
@@ -192,7 +192,7 @@ def test_a_stronger_run_gets_a_proportionally_wider_band(truth):
     """The residual model is relative: with no parameter uncertainty, the band's width on each run
     is 2 x 1.96 sigma_c x the RMS of the run's predicted channel, so run 2 (1.8 x the input) gets a
     band wider in proportion to its response, not the calibration run's width."""
-    from structures.shake_table.building_model import BuildingFit
+    from structures.shake_table.building_fit import BuildingFit
 
     b, runs = truth
     m = _model(runs, Superstructure.of(b), PL)

@@ -17,7 +17,8 @@ import numpy as np
 import pandas as pd
 
 from rrfrei.gap.report import verdict_text
-from structures.shake_table.gap import CHANNELS, UNITS, ShakeTableGap
+from structures.shake_table.gap import ShakeTableGap
+from structures.shake_table.sequence import CHANNELS, UNITS
 
 __all__ = ["figures", "runs_table", "write_report"]
 

@@ -34,10 +34,10 @@ from structures import Isolator, load_building
 from structures.propagation.plan_design import DEFAULT_LAMBDAS, plan_design_answers, plot_orbit
 from structures.propagation.propagate import propagate
 from structures.propagation.stripes import StripeAnalysis, multiple_stripe_analysis
-from structures.shake_table.gap import CHANNELS as CHANNELS_ST
 from structures.shake_table.gap import shake_table_gap
 from structures.shake_table.report import figures as shake_table_figures
 from structures.shake_table.report import gap_table as shake_table_gap_table
+from structures.shake_table.sequence import CHANNELS as CHANNELS_ST
 
 __all__ = ["STEPS", "step_calibrate", "step_compare", "step_gap", "step_propagate", "step_rubber",
            "step_shake_table", "step_tests", "step_validate"]
