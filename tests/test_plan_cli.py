@@ -88,7 +88,7 @@ def test_records_that_are_not_pairs_are_one_line_errors(tmp_path, records, extra
 
 def test_a_law_without_a_plan_form_and_bounds_without_pairs_are_refused(tmp_path):
     toml = tmp_path / "b.toml"
-    text = (ROOT / "structures" / "buildings" / "three_story.toml").read_text()
+    text = (ROOT / "structures" / "building" / "buildings" / "three_story.toml").read_text()
     toml.write_text(text.replace('law = "plasticity"', 'law = "plasticity+rate"') + "rate_c = 0.1\n")
     proc = _run(["--posterior", str(tmp_path / "p.nc"), "--building", str(toml), "--records", "santamonica",
                  "--bidirectional", "--out", str(tmp_path / "o")])

@@ -45,7 +45,7 @@ SLOW = 500
 
 SYNTH = Path(rrfrei.__file__).parent / "data" / "isolator_synthetic"
 RECORDS = Path(ground_motions.__file__).parent / "records"
-BUILDINGS = Path(structures.__file__).parent / "buildings"
+BUILDINGS = Path(structures.__file__).parent / "building" / "buildings"
 
 
 # ------------------------------------------------------------------------------------- seeds
