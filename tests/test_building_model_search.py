@@ -6,21 +6,17 @@ in every simulation, its deviations from OpenSees counted and reported, never a 
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
-import pytest
 from scipy.optimize import least_squares
 
 import ground_motions
 import structures
 import structures.shake_table.output_error as oe
 from rrfrei.laws import get
-from structures.building.shear_building import Isolator, ShearBuilding
 from structures.shake_table import ShakeTableRun
 from structures.shake_table.building_model import BuildingModel
 from structures.shake_table.simulation import BuildingData, Superstructure, simulate
-from tests.test_shake_table_gap_building import MASSES, PL, ZETA, K, _model, _runs
+from tests._shake_table_truth import PL, model_of
 
 
 def _rastrigin(a: np.ndarray):
@@ -55,20 +51,12 @@ def test_the_global_start_moves_only_the_coordinates_it_is_given():
     assert xg is not None and xg[1] == x0[1] and np.all(np.abs(xg[free] - x0[free]) > 0)
 
 
-@pytest.fixture(scope="module")
-def truth():
-    b = ShearBuilding(MASSES[1:], K, [4.27] * 5, ZETA, MASSES[0], Isolator("plasticity", PL))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return b, _runs(b)
-
-
 def test_a_refit_searches_globally_over_the_added_effect_and_the_superstructure(truth, monkeypatch):
     """The baseline's global start varies every parameter; an added effect's refit (from the
     fitted baseline) varies the effect's parameters and the superstructure's stiffness scale and
     damping, the fitted isolator law held."""
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), {**PL, "qd": 0.8 * PL["qd"]})
+    m = model_of(runs, Superstructure.of(b), {**PL, "qd": 0.8 * PL["qd"]})
     cal = BuildingData(tuple(runs), observed=("run1",))
     seen = []
     real = oe.cma_start
@@ -114,7 +102,7 @@ def test_the_fit_reports_the_robust_solves_deviations(truth, monkeypatch):
     """Every simulation of the search tallies one robust step: the fit counts the simulations and
     says so in its note."""
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), PL)
+    m = model_of(runs, Superstructure.of(b), PL)
     m.global_evals = 0
     real = BuildingModel.simulate
 
@@ -137,7 +125,7 @@ def test_with_a_global_search_a_refit_starts_once_per_given_fit(truth):
     once per given fit (the effect at the catalogue's start); without a global search it starts
     at the neutral value too."""
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), PL)
+    m = model_of(runs, Superstructure.of(b), PL)
     base = m.fit(BuildingData(tuple(runs), observed=("run1",)), seed=0)
     aug = m.augment(["isolation_damping"])
     starts = aug.starts([base])

@@ -26,32 +26,9 @@ import scipy.linalg
 from rrfrei.laws import LawSpec
 from rrfrei.laws import get as get_law
 from rrfrei.simulate import simulate_force
+from structures.building.checks import positive, positive_vector
 
 DAMPING_KINDS = ("stiffness", "rayleigh")
-
-
-def _positive(name: str, x: Any, *, allow_zero: bool = False) -> float:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {x!r}") from None
-    if not math.isfinite(v) or (v < 0.0 if allow_zero else v <= 0.0):
-        need = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{name} = {x!r} is invalid: expected a finite number {need}")
-    return v
-
-
-def _vector(name: str, values: Any, unit: str) -> tuple[float, ...]:
-    try:
-        arr = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a sequence of numbers [{unit}], got {values!r}") from None
-    if arr.ndim != 1 or arr.size == 0:
-        raise ValueError(f"{name} must be a non-empty 1-D sequence [{unit}], got shape {arr.shape}")
-    for i, x in enumerate(arr):
-        if not math.isfinite(x) or x <= 0.0:
-            raise ValueError(f"{name}[{i}] = {x:g} {unit} is invalid: expected a finite number > 0")
-    return tuple(float(x) for x in arr)
 
 
 @dataclass(frozen=True)
@@ -85,7 +62,7 @@ class Isolator:
         if isinstance(self.count, bool) or not isinstance(self.count, (int, np.integer)) or self.count < 1:
             raise ValueError(f"isolator.count = {self.count!r} is invalid: expected an integer >= 1")
         object.__setattr__(self, "count", int(self.count))
-        object.__setattr__(self, "length_scale", _positive("isolator.length_scale", self.length_scale))
+        object.__setattr__(self, "length_scale", positive("isolator.length_scale", self.length_scale))
         if self.params is not None:
             object.__setattr__(self, "params", spec.as_dict(spec.pack(self.params)))
 
@@ -125,7 +102,7 @@ class Isolator:
         k_eff = (F_max - F_min) / (u_max - u_min) over the last of ``cycles`` quasi-static sine
         cycles (ASCE 7-22 eq. 17.8-1 form).
         """
-        d = _positive("disp", disp)
+        d = positive("disp", disp)
         n = int(cycles) * int(steps_per_cycle)
         t = np.arange(1, n + 1) / steps_per_cycle
         u = d * np.sin(2.0 * np.pi * t)
@@ -175,18 +152,18 @@ class ShearBuilding:
     name: str = ""
 
     def __post_init__(self) -> None:
-        m = _vector("story_masses", self.story_masses, "t")
-        k = _vector("story_stiffness", self.story_stiffness, "kN/m")
-        h = _vector("story_heights", self.story_heights, "m")
+        m = tuple(float(x) for x in positive_vector("story_masses", self.story_masses, "t"))
+        k = tuple(float(x) for x in positive_vector("story_stiffness", self.story_stiffness, "kN/m"))
+        h = tuple(float(x) for x in positive_vector("story_heights", self.story_heights, "m"))
         if not (len(m) == len(k) == len(h)):
             raise ValueError(
                 f"story_masses, story_stiffness and story_heights must have the same length "
                 f"(one per story); got {len(m)}, {len(k)} and {len(h)}"
             )
-        z = _positive("damping_ratio", self.damping_ratio, allow_zero=True)
+        z = positive("damping_ratio", self.damping_ratio, allow_zero=True)
         if z >= 1.0:
             raise ValueError(f"damping_ratio = {z:g} is invalid: expected 0 <= zeta < 1")
-        mb = _positive("base_mass", self.base_mass)
+        mb = positive("base_mass", self.base_mass)
         if not isinstance(self.isolator, Isolator):
             raise ValueError(f"isolator must be an Isolator, got {type(self.isolator).__name__}")
         if self.damping not in DAMPING_KINDS:

@@ -94,10 +94,33 @@ class Response:
         }
 
 
-def solver_settings(gamma, beta, tol, max_iter, max_subdivisions, robust: bool) -> Solver:
-    """The validated settings of the Newmark step and its Newton iteration (:class:`Solver`):
-    ``gamma``, ``beta`` of Newmark, the displacement tolerance ``tol`` [m], Newton iterations, step
-    subdivisions and whether the law's robust local solve replaces a failed local iteration."""
+NEWMARK_OPTIONS = ("gamma", "beta", "tol", "max_iter", "max_subdivisions")
+"""The keyword options of every time-history verb that set the Newmark step and its Newton
+iteration (:func:`solver_settings`, which holds their defaults)."""
+
+
+def solver_settings(robust: bool = False, *, gamma: float = 0.5, beta: float = 0.25, tol: float = 1e-12,
+                    max_iter: int = _DEFAULT_MAX_ITER, max_subdivisions: int = _DEFAULT_LEVELS,
+                    **unknown) -> Solver:
+    """The validated settings of the Newmark step and its Newton iteration (:class:`Solver`), the
+    one home of the options the time-history verbs take (:data:`NEWMARK_OPTIONS`).
+
+    Parameters
+    ----------
+    robust : the law's robust local solve replaces a failed local iteration (at the last
+        subdivision level only).
+    gamma, beta : Newmark's parameters (0.5, 0.25: average acceleration).
+    tol : Newton convergence on ||du||_2 [m] (OpenSees NormDispIncr).
+    max_iter : Newton iterations per (sub)step before the step is subdivided.
+    max_subdivisions : a failing step is retried in 2, 4, ... 2^max_subdivisions substeps.
+
+    Raises
+    ------
+    ValueError : an option that is not one of :data:`NEWMARK_OPTIONS`, or a bad value (named).
+    """
+    if unknown:
+        raise ValueError(f"unknown option(s) {', '.join(map(repr, unknown))}: the time-history options "
+                         f"are dt, {', '.join(NEWMARK_OPTIONS)} and the verb's own")
     g = float(gamma)
     b = float(beta)
     if not (np.isfinite(g) and g > 0.0):
@@ -255,13 +278,9 @@ def time_history(
     building,
     record,
     *,
-    gamma: float = 0.5,
-    beta: float = 0.25,
     dt: float | None = None,
-    tol: float = 1e-12,
-    max_iter: int = _DEFAULT_MAX_ITER,
-    max_subdivisions: int = _DEFAULT_LEVELS,
     local_solver: str = "opensees",
+    **newmark,
 ) -> Response:
     """Nonlinear time history of ``building`` under the ground acceleration ``record``.
 
@@ -276,9 +295,10 @@ def time_history(
     record : ``ground_motions.Record`` (``dt`` [s], ``accel`` [m/s^2]).
     dt : analysis step [s]; None uses the record's step, a smaller one interpolates the record
         linearly.
-    tol : Newton convergence on ||du||_2 [m] (OpenSees NormDispIncr).
-    max_iter : Newton iterations per (sub)step before the step is subdivided.
-    max_subdivisions : a failing step is retried in 2, 4, ... 2^max_subdivisions substeps.
+    **newmark : ``gamma``, ``beta`` (0.5, 0.25), ``tol`` (Newton convergence on ||du||_2 [m],
+        OpenSees NormDispIncr; 1e-12), ``max_iter`` (Newton iterations per (sub)step before the
+        step is subdivided; 50), ``max_subdivisions`` (a failing step is retried in 2, 4, ...
+        2^max_subdivisions substeps; 6): :func:`solver_settings`.
     local_solver : ``"opensees"`` (default): the isolator law's own OpenSees local iteration.
         ``"robust"`` (Bouc-Wen; see :func:`rrfrei.simulate_force`): at the last subdivision level
         only, i.e. where the default would raise, a failed (or falsely converged) OpenSees local
@@ -294,8 +314,7 @@ def time_history(
     ConvergenceError : a step failed at every subdivision; names the record, time and state.
     """
     spec, chain = _model(building)
-    solver = solver_settings(gamma, beta, tol, max_iter, max_subdivisions,
-                             robust_local_solve(spec, local_solver))
+    solver = solver_settings(robust_local_solve(spec, local_solver), **newmark)
     iso = building.isolator
     p = iso.packed()
     name, ag, h = _ground(record, dt)
@@ -323,14 +342,10 @@ def time_history_batch(
     record,
     params,
     *,
-    gamma: float = 0.5,
-    beta: float = 0.25,
     dt: float | None = None,
-    tol: float = 1e-12,
-    max_iter: int = _DEFAULT_MAX_ITER,
-    max_subdivisions: int = _DEFAULT_LEVELS,
     n_blocks: int | None = None,
     local_solver: str = "opensees",
+    **newmark,
 ) -> dict[str, np.ndarray]:
     """Peak demands of ``building`` under ``record`` for many isolator parameter sets.
 
@@ -356,8 +371,7 @@ def time_history_batch(
     (0 = converged) and ``converged`` (bool).  Runs that failed hold NaN demands.
     """
     spec, chain = _model(building)
-    solver = solver_settings(gamma, beta, tol, max_iter, max_subdivisions,
-                             robust_local_solve(spec, local_solver))
+    solver = solver_settings(robust_local_solve(spec, local_solver), **newmark)
     name, ag, h = _ground(record, dt)
     P = param_rows(spec, params)
     res = run_batch(kernel(spec).batch, (chain, _layer(building, first_row(P)), P, ag, h, solver),

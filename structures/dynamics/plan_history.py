@@ -31,8 +31,6 @@ from structures.building.shear_building import ShearBuilding
 from structures.dynamics import energy as _energy
 from structures.dynamics import plan_energy as _plan_energy
 from structures.dynamics.history import (
-    _DEFAULT_LEVELS,
-    _DEFAULT_MAX_ITER,
     ConvergenceError,
     Response,
     _model,
@@ -253,12 +251,8 @@ def plan_time_history(
     ground=None,
     *,
     building_y: ShearBuilding | None = None,
-    gamma: float = 0.5,
-    beta: float = 0.25,
     dt: float | None = None,
-    tol: float = 1e-12,
-    max_iter: int = _DEFAULT_MAX_ITER,
-    max_subdivisions: int = _DEFAULT_LEVELS,
+    **newmark,
 ) -> PlanResponse:
     """Nonlinear time history of ``building`` in plan under two horizontal ground components.
 
@@ -287,9 +281,9 @@ def plan_time_history(
     dt : with an array ``ground``, the step of its samples [s] (required; the analysis runs at
         it); with a record pair, the analysis step [s] (None: the pair's; a smaller one
         interpolates both components linearly).
-    tol : Newton convergence on ||du||_2 over all 2 (stories + 1) DOFs [m] (NormDispIncr).
-    max_iter : Newton iterations per (sub)step before the step is subdivided.
-    max_subdivisions : a failing step is retried in 2, 4, ... 2^max_subdivisions substeps.
+    **newmark : ``gamma``, ``beta``, ``tol`` (here on ||du||_2 over all 2 (stories + 1) DOFs [m]),
+        ``max_iter``, ``max_subdivisions``: as :func:`structures.time_history`
+        (:func:`structures.dynamics.history.solver_settings`).
 
     Raises
     ------
@@ -299,7 +293,7 @@ def plan_time_history(
     """
     pspec, p = _law(building, law, params)
     chain_x, chain_y = _chains(building, building_y)
-    solver = solver_settings(gamma, beta, tol, max_iter, max_subdivisions, False)
+    solver = solver_settings(False, **newmark)
     name, ag, h = _plan_ground(ground, dt)
     n, ndof = ag.shape[0], chain_x.mass.size
     hist = PlanHistories.allocate(n, ndof)
@@ -339,13 +333,9 @@ def plan_time_history_batch(
     ground=None,
     *,
     building_y: ShearBuilding | None = None,
-    gamma: float = 0.5,
-    beta: float = 0.25,
     dt: float | None = None,
-    tol: float = 1e-12,
-    max_iter: int = _DEFAULT_MAX_ITER,
-    max_subdivisions: int = _DEFAULT_LEVELS,
     n_blocks: int | None = None,
+    **newmark,
 ) -> dict[str, np.ndarray]:
     """Peak demands of ``building`` in plan under ``ground`` for many isolator parameter sets.
 
@@ -381,7 +371,7 @@ def plan_time_history_batch(
         P = param_rows(spec, params)
     P = np.ascontiguousarray(P)
     chain_x, chain_y = _chains(building, building_y)
-    solver = solver_settings(gamma, beta, tol, max_iter, max_subdivisions, False)
+    solver = solver_settings(False, **newmark)
     _, ag, h = _plan_ground(ground, dt)
     layer = _layer(building, pspec, first_row(P))
     res = run_batch(kernel(pspec).batch, (chain_x, chain_y, layer, P, ag, h, solver),

@@ -192,7 +192,7 @@ def simulate(spec: LawSpec, law_p: np.ndarray, sup: Superstructure, data: Buildi
     out: dict[str, dict[str, np.ndarray]] = {}
     m = sup.masses
     K = kernel(spec)
-    solver = solver_settings(0.5, 0.25, 1e-12, 50, 6, True)
+    solver = solver_settings(True, gamma=0.5, beta=0.25, tol=1e-12, max_iter=50, max_subdivisions=6)
     dev = 0
     lay = Layer(np.ascontiguousarray(law_p, dtype=float), 1.0, 1.0, np.array(spec.initial_state, dtype=float))
     groups: list[tuple[float, list[str]]]
