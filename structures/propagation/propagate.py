@@ -20,10 +20,9 @@ whatever runs the chunks.  With ``store=DIR`` finished chunks go to a Parquet st
 
 The pieces live in modules named for their idea: :mod:`structures.propagation.inputs` (building, records,
 scales, posterior draws), :mod:`structures.propagation.executors` (where chunks run, :func:`run_chunk`),
-:mod:`structures.propagation.store` (the Parquet store),
-:mod:`structures.propagation.responses` (:class:`ResponseSet`)
-and :mod:`structures.propagation.response_plots` (its figures).  This module is the workflow; it re-exports
-their public names, so ``from structures.propagation.propagate import ResponseSet, SpectrumScaling`` works.
+:mod:`structures.propagation.store` (the Parquet store), :mod:`structures.propagation.responses`
+(:class:`ResponseSet` and its figures).  This module is the workflow; it re-exports their public
+names, so ``from structures.propagation.propagate import ResponseSet, SpectrumScaling`` works.
 
 Units: m, s, kN, tonnes; accelerations m/s^2; drift ratios dimensionless.
 """
@@ -54,8 +53,7 @@ from structures.propagation.inputs import (
     resolve_records,
     resolve_scales,
 )
-from structures.propagation.response_plots import DEMAND_LABELS, label
-from structures.propagation.responses import MAIN_DEMANDS, ResponseSet, chunk_table
+from structures.propagation.responses import DEMAND_LABELS, MAIN_DEMANDS, ResponseSet, chunk_table, label
 from structures.propagation.store import ParquetStore
 
 __all__ = ["DEMAND_LABELS", "MAIN_DEMANDS", "ResponseSet", "SpectrumScaling", "label", "propagate",
