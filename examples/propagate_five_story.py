@@ -24,12 +24,12 @@ matplotlib.use("Agg")
 import structures  # noqa: E402
 from rrfrei.calibration import calibrate  # noqa: E402
 from rrfrei.io import load_test  # noqa: E402
-from structures.propagate import propagate  # noqa: E402
+from structures.propagation.propagate import propagate  # noqa: E402
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else "propagate_five_story")
 out.mkdir(parents=True, exist_ok=True)
 
-# The example building (structures/buildings/five_story.toml): five stories on isolators whose law
+# The example building (structures/building/buildings/five_story.toml): five stories on isolators whose law
 # and geometry are in the file; prototype displacement = length_scale x specimen displacement.
 building = structures.load_building("five_story")
 law = building.isolator.law

@@ -2,7 +2,7 @@
 
 The check of issue 27: does the pipeline's output-error calibration reach what a plain least-
 squares fit of the simulated building reaches?  Both use the project's public API and the same
-simulation (:func:`structures.building_model.simulate`: the identified superstructure, the
+simulation (:func:`structures.shake_table.simulation.simulate`: the identified superstructure, the
 isolator law, the runs in order with their state carried):
 
 * **plain**: ``scipy.optimize.least_squares`` (trust-region reflective, the law's own bounds,
@@ -30,9 +30,11 @@ from scipy.optimize import least_squares
 
 from rrfrei.calibration.checks import nrmse
 from rrfrei.gap.model import IsolatorModel
-from structures.building_model import BuildingData, BuildingModel, Superstructure, calibration_test, simulate
-from structures.identify import identify_superstructure
-from structures.shake_table_gap import BNCS_ORDER, CHANNELS, resolve_run
+from structures.shake_table.building_model import BuildingModel
+from structures.shake_table.gap import BNCS_ORDER, resolve_run
+from structures.shake_table.identify import identify_superstructure
+from structures.shake_table.sequence import CHANNELS
+from structures.shake_table.simulation import BuildingData, Superstructure, calibration_test, simulate
 
 
 def main() -> None:
@@ -63,7 +65,7 @@ def main() -> None:
     model = BuildingModel(law, sup, test, scales, loop_fit=loop, a_ref=a_ref)
     spec = model.spec
     lay = model.layout
-    s_vec, lb, ub = model._bounds_scales()
+    s_vec, lb, ub = model.scaled_bounds()
     start = {**loop.params, "k_scale": 1.0, "zeta": sup.zeta}
     x0 = np.array([start.get(n, 0.0) for n in lay.names])
     print(f"superstructure identified on {ident.run}; law {law}; free: {', '.join(lay.names)}")

@@ -2,7 +2,7 @@
 
 Numba keys a cached function on the source file *of that function* only.  A cached caller in
 another file (the per-law instances of ``laws/_history.py``, ``calibration/_batch.py`` and
-``structures/newmark.py``, every law through the ``inline="always"`` helpers of
+``structures/dynamics/newmark.py``, every law through the ``inline="always"`` helpers of
 ``laws/_util.py``) would otherwise keep the old machine code after a law file changes, and
 return the old law's forces.  (The instances' own file names also hash the bound law sources,
 :mod:`rrfrei.laws.specialise`, which covers laws outside these packages.)

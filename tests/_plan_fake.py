@@ -5,7 +5,7 @@ whose y component is zero) computed as two independent 1-D time histories
 (:func:`structures.time_history`), one per direction: with a linear superstructure and an
 isotropic linear isolator (``rrfrei.laws.plan`` "linear": F = k u + c v per axis, no coupling)
 the two directions do not interact, so this is the plan response exactly, not an approximation.
-It returns what :func:`structures.plan_design.plan_arrays` reads: (n, 2) histories.
+It returns what :func:`structures.propagation.plan_design.plan_arrays` reads: (n, 2) histories.
 """
 
 from __future__ import annotations

@@ -24,3 +24,11 @@ def _import_opensees():
 def ops():
     """The openseespy module (fails under CI if it cannot be imported)."""
     return _import_opensees()
+
+
+@pytest.fixture(scope="module")
+def truth():
+    """(a known shake-table building, its runs): ``tests/_shake_table_truth.py``."""
+    from tests._shake_table_truth import building_and_runs
+
+    return building_and_runs()

@@ -1,4 +1,4 @@
-"""How the building's output-error fit searches (structures.building_model): a global start
+"""How the building's output-error fit searches (structures.shake_table.building_model): a global start
 (CMA-ES) before the local least squares, for the baseline over every parameter and for an added
 effect's refit over that effect's parameters and the superstructure's; and the robust local solve
 in every simulation, its deviations from OpenSees counted and reported, never a lost candidate.
@@ -6,20 +6,17 @@ in every simulation, its deviations from OpenSees counted and reported, never a 
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
-import pytest
 from scipy.optimize import least_squares
 
 import ground_motions
 import structures
-import structures.building_model as bm
+import structures.shake_table.output_error as oe
 from rrfrei.laws import get
-from structures.building import Isolator, ShearBuilding
-from structures.building_model import BuildingData, BuildingModel, Superstructure, simulate
 from structures.shake_table import ShakeTableRun
-from tests.test_shake_table_gap_building import MASSES, PL, ZETA, K, _model, _runs
+from structures.shake_table.building_model import BuildingModel
+from structures.shake_table.simulation import BuildingData, Superstructure, simulate
+from tests._shake_table_truth import PL, model_of
 
 
 def _rastrigin(a: np.ndarray):
@@ -40,7 +37,7 @@ def test_the_global_start_leaves_the_basin_a_local_search_stays_in():
     lb, ub = a - 10.0, a + 10.0
     local = least_squares(resid, x0, bounds=(lb, ub))
     assert 2 * local.cost > 1.0  # stuck in a local basin
-    xg = bm._cma_start(resid, x0, lb, ub, np.ones(3, bool), 600, seed=0)
+    xg = oe.cma_start(resid, x0, lb, ub, np.ones(3, bool), 600, seed=0)
     assert xg is not None
     polished = least_squares(resid, xg, bounds=(lb, ub))
     np.testing.assert_allclose(polished.x, a, atol=1e-6)
@@ -50,16 +47,8 @@ def test_the_global_start_moves_only_the_coordinates_it_is_given():
     a = np.array([1.0, -1.0, 2.0])
     x0 = a + 1.9
     free = np.array([True, False, True])
-    xg = bm._cma_start(_rastrigin(a), x0, a - 10.0, a + 10.0, free, 300, seed=1)
+    xg = oe.cma_start(_rastrigin(a), x0, a - 10.0, a + 10.0, free, 300, seed=1)
     assert xg is not None and xg[1] == x0[1] and np.all(np.abs(xg[free] - x0[free]) > 0)
-
-
-@pytest.fixture(scope="module")
-def truth():
-    b = ShearBuilding(MASSES[1:], K, [4.27] * 5, ZETA, MASSES[0], Isolator("plasticity", PL))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return b, _runs(b)
 
 
 def test_a_refit_searches_globally_over_the_added_effect_and_the_superstructure(truth, monkeypatch):
@@ -67,16 +56,16 @@ def test_a_refit_searches_globally_over_the_added_effect_and_the_superstructure(
     fitted baseline) varies the effect's parameters and the superstructure's stiffness scale and
     damping, the fitted isolator law held."""
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), {**PL, "qd": 0.8 * PL["qd"]})
+    m = model_of(runs, Superstructure.of(b), {**PL, "qd": 0.8 * PL["qd"]})
     cal = BuildingData(tuple(runs), observed=("run1",))
     seen = []
-    real = bm._cma_start
+    real = oe.cma_start
 
     def spy(resid, x0, lb, ub, free, evals, seed):
         seen.append((tuple(free), evals))
         return real(resid, x0, lb, ub, free, min(evals, 40), seed)
 
-    monkeypatch.setattr(bm, "_cma_start", spy)
+    monkeypatch.setattr(oe, "cma_start", spy)
     base = m.fit(cal, seed=0)
     aug = m.augment(["isolation_damping"])
     aug.fit(cal, seed=0, start=[base])
@@ -113,7 +102,7 @@ def test_the_fit_reports_the_robust_solves_deviations(truth, monkeypatch):
     """Every simulation of the search tallies one robust step: the fit counts the simulations and
     says so in its note."""
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), PL)
+    m = model_of(runs, Superstructure.of(b), PL)
     m.global_evals = 0
     real = BuildingModel.simulate
 
@@ -136,13 +125,13 @@ def test_with_a_global_search_a_refit_starts_once_per_given_fit(truth):
     once per given fit (the effect at the catalogue's start); without a global search it starts
     at the neutral value too."""
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), PL)
+    m = model_of(runs, Superstructure.of(b), PL)
     base = m.fit(BuildingData(tuple(runs), observed=("run1",)), seed=0)
     aug = m.augment(["isolation_damping"])
-    starts = aug._starts([base])
+    starts = aug.starts([base])
     assert len(starts) == 1 and starts[0]["c_iso"] > 0.0
     aug.refit_global_evals = 0
-    assert sorted(s["c_iso"] > 0.0 for s in aug._starts([base])) == [False, True]
+    assert sorted(s["c_iso"] > 0.0 for s in aug.starts([base])) == [False, True]
 
 
 def test_the_global_start_searches_a_single_coordinate_too():
@@ -151,6 +140,6 @@ def test_the_global_start_searches_a_single_coordinate_too():
     a = np.array([1.0, -1.0])
     resid = _rastrigin(a)
     x0 = a + np.array([1.9, 0.0])
-    xg = bm._cma_start(resid, x0, a - 10.0, a + 10.0, np.array([True, False]), 200, seed=0)
+    xg = oe.cma_start(resid, x0, a - 10.0, a + 10.0, np.array([True, False]), 200, seed=0)
     assert xg is not None and xg[1] == x0[1]
     assert resid(xg) @ resid(xg) < resid(x0) @ resid(x0)

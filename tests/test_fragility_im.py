@@ -16,7 +16,7 @@ import pytest
 import ground_motions
 from ground_motions import G, Record
 from structures import load_building
-from structures.stripes import IntensityMeasure, multiple_stripe_analysis, spanning_levels
+from structures.propagation.stripes import IntensityMeasure, multiple_stripe_analysis, spanning_levels
 
 RECORDS = ("rinaldi", "tabas")  # the two shortest bundled records
 
@@ -109,7 +109,7 @@ def test_the_fragility_is_against_sa_in_g_with_its_median_inside_the_stripes(msa
 def test_a_beta_the_stripes_do_not_resolve_is_said_not_reported_as_a_spread():
     """One stripe between none and all, the others all or none below and above it: theta can put
     that stripe at its share for any beta, the likelihood grows as beta -> 0, and the fit says so."""
-    from structures.fragility import fit_fragility
+    from structures.propagation.fragility import fit_fragility
 
     fr = fit_fragility([0.1, 0.16, 0.25, 0.4, 0.6], [24] * 5, [0, 0, 14, 24, 24], demand="d", limit=1.0)
     assert "only one stripe" in fr.note and "beta is not identified" in fr.note

@@ -32,7 +32,7 @@ from rrfrei.gap.design import (
 from rrfrei.io import ShearTest
 from rrfrei.laws.effects import EFFECTS
 from structures import time_history_batch
-from structures.consequences import building_consequences, plot_consequences
+from structures.propagation.consequences import building_consequences, plot_consequences
 
 M = 400  # samples per cycle (divisible by 4: the peaks are samples)
 

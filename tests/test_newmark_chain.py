@@ -1,4 +1,4 @@
-"""The shared core of the building stack (structures.newmark_chain): one direction of a step.
+"""The shared core of the building stack (structures.dynamics.newmark_chain): one direction of a step.
 
 The unidirectional and the plan kernels move their chains with these functions, so the
 condensation, the predictor residual, the commit and the convergence rule are written once.
@@ -14,9 +14,9 @@ from hypothesis import strategies as st
 
 import ground_motions
 import structures
-from structures import newmark_chain as core
-from structures.newmark_records import Chain, Histories, Solver
-from structures.plan_newmark_records import PlanBatch, PlanHistories
+from structures.dynamics import newmark_chain as core
+from structures.dynamics.newmark_records import Chain, Histories, Solver
+from structures.dynamics.plan_newmark_records import PlanBatch, PlanHistories
 
 
 def chain_of(n: int, rng: np.random.Generator) -> Chain:
@@ -112,7 +112,7 @@ def test_plan_histories_are_the_unidirectional_histories_per_direction():
 
 def test_batch_results_have_the_summary_fields_with_a_run_axis():
     b = PlanBatch.allocate(3, 4)
-    assert b._fields == structures.plan_newmark_records.PlanSummary._fields
+    assert b._fields == structures.dynamics.plan_newmark_records.PlanSummary._fields
     assert b.drift_peak.shape == (3, 2, 4) and b.iso_disp_peak.shape == (3, 2)
     assert b.status.dtype == np.int64 and b.subdivided_steps.dtype == np.int64
     assert b.iso_work.dtype == np.float64 and not b.iso_work.any()

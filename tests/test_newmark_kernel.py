@@ -1,6 +1,6 @@
 """The Newmark kernel: one template, instantiated per isolator law, condensed onto the base.
 
-:mod:`structures.newmark` calls the isolator law only through its slots; each law gets its own
+:mod:`structures.dynamics.newmark` calls the isolator law only through its slots; each law gets its own
 instance (:func:`rrfrei.laws.specialise.instantiate`), so no branch over laws exists.  The
 superstructure is linear and condensed onto the base DOF, so Newton is a scalar iteration there:
 with a linear isolator it must converge in one correction (the second at rounding level).
@@ -17,7 +17,7 @@ import ground_motions
 import structures
 from rrfrei import laws
 from rrfrei.laws import specialise
-from structures import history, newmark
+from structures.dynamics import history, newmark
 
 
 def test_the_template_itself_runs_no_law():

@@ -26,7 +26,7 @@ import ground_motions
 import structures
 from rrfrei.laws import plan as plan_laws
 from structures import Isolator, ShearBuilding
-from structures.plan_history import TORSION
+from structures.dynamics.plan_history import TORSION
 
 TOY = {"k": 260.0, "r": 0.3, "d_b": 0.005}
 PARAMS = {"linear": {"k": 300.0, "c": 0.0}, "toy_bilinear": TOY, **SPECIMEN_PARAMS}
@@ -243,7 +243,7 @@ def test_energy_balances_per_direction_and_in_plan(law):
         assert r.energy_error < 1e-9
         assert np.max(r.energy["input"]) > 0.0
     assert ours.energy_error < 1e-9
-    assert structures.energy.balance_error(ours.energy) < 1e-9
+    assert structures.dynamics.energy.balance_error(ours.energy) < 1e-9
     for term in ours.energy:
         np.testing.assert_array_equal(ours.energy[term], ours.x.energy[term] + ours.y.energy[term])
     u, f = ours.isolator_disp, ours.isolator_force

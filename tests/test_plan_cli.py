@@ -1,7 +1,7 @@
 """`rrfrei propagate --bidirectional`, run as a user runs it (subprocesses).
 
 * on two bundled pairs with a few posterior draws and bounds, the command writes the tables the API
-  computes (the nominal rows are :func:`structures.plan_propagate.propagate_pairs`' table), the
+  computes (the nominal rows are :func:`structures.propagation.plan_propagate.propagate_pairs`' table), the
   code's answers with one row per bound and pair plus the design rows, and one orbit plot per pair;
 * a record with one component, a single file, a law without a plan form and --bounds without
   --bidirectional are one-line user errors (exit 2) that say what to give instead.
@@ -18,7 +18,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from structures.plan_propagate import propagate_pairs
+from structures.propagation.plan_propagate import propagate_pairs
 
 ROOT = Path(__file__).resolve().parents[1]
 RRFREI = [sys.executable, "-m", "rrfrei.app", "propagate"]
@@ -88,7 +88,7 @@ def test_records_that_are_not_pairs_are_one_line_errors(tmp_path, records, extra
 
 def test_a_law_without_a_plan_form_and_bounds_without_pairs_are_refused(tmp_path):
     toml = tmp_path / "b.toml"
-    text = (ROOT / "structures" / "buildings" / "three_story.toml").read_text()
+    text = (ROOT / "structures" / "building" / "buildings" / "three_story.toml").read_text()
     toml.write_text(text.replace('law = "plasticity"', 'law = "plasticity+rate"') + "rate_c = 0.1\n")
     proc = _run(["--posterior", str(tmp_path / "p.nc"), "--building", str(toml), "--records", "santamonica",
                  "--bidirectional", "--out", str(tmp_path / "o")])

@@ -25,7 +25,7 @@ from hypothesis.extra.numpy import arrays
 
 import ground_motions
 import structures
-from structures.plan_design import (
+from structures.propagation.plan_design import (
     ANSWERS,
     PlanDesignAnswers,
     TorsionAmplification,

@@ -17,9 +17,9 @@ import pytest
 
 import ground_motions
 import structures
-from structures.plan_design import TorsionAmplification
-from structures.plan_propagate import design_distribution, propagate_pairs, suite_design
-from structures.propagate import propagate
+from structures.propagation.plan_design import TorsionAmplification
+from structures.propagation.plan_propagate import design_distribution, propagate_pairs, suite_design
+from structures.propagation.propagate import propagate
 from tests._plan_fake import pair_from
 from tests.test_propagate import draws_around
 

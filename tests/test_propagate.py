@@ -29,7 +29,7 @@ import pytest
 import ground_motions
 import structures
 from rrfrei.laws import get as get_law
-from structures.propagate import ResponseSet, propagate
+from structures.propagation.propagate import ResponseSet, propagate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -158,7 +158,7 @@ def test_rerun_with_the_same_store_skips_every_finished_chunk(small_case, tmp_pa
     post, bld, recs = small_case
     kw = dict(n_samples=6, chunk_size=3, progress=False, store=tmp_path / "s")
     first = propagate(post, bld, recs, **kw)
-    P = importlib.import_module("structures.propagate")
+    P = importlib.import_module("structures.propagation.propagate")
 
     def boom(*a, **k):
         raise AssertionError("a finished chunk was run again")
@@ -175,7 +175,7 @@ KILL_SCRIPT = textwrap.dedent("""
     import numpy as np
     sys.path.insert(0, {tests!r})
     import importlib
-    P = importlib.import_module("structures.propagate")
+    P = importlib.import_module("structures.propagation.propagate")
     from test_propagate import draws_around, short
     import structures
     bld = structures.load_building("five_story")

@@ -16,9 +16,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from structures import summaries
-from structures.fragility import fit_fragility
-from structures.store import MANIFEST, ParquetStore
+from structures.propagation import summaries
+from structures.propagation.fragility import fit_fragility
+from structures.propagation.store import MANIFEST, ParquetStore
 
 
 def _crossed(y: np.ndarray, scale: float = 1.0, demand: str = "d") -> pd.DataFrame:

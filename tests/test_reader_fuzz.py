@@ -37,7 +37,7 @@ import structures
 from ground_motions.io import read as read_record
 from rrfrei.io import read_test
 from rubber.io import read_test as read_rubber
-from structures.building import load_building
+from structures.building.shear_building import load_building
 from structures.shake_table import ConsistencyWarning, read_run
 
 FAST = 80
@@ -45,7 +45,7 @@ SLOW = 500
 
 SYNTH = Path(rrfrei.__file__).parent / "data" / "isolator_synthetic"
 RECORDS = Path(ground_motions.__file__).parent / "records"
-BUILDINGS = Path(structures.__file__).parent / "buildings"
+BUILDINGS = Path(structures.__file__).parent / "building" / "buildings"
 
 
 # ------------------------------------------------------------------------------------- seeds

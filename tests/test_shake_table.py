@@ -1,5 +1,5 @@
 """Shake-table runs: reading, consistency, the isolation system, superstructure identification and
-prediction of a run (structures.shake_table, structures.identify, structures.predict)."""
+prediction of a run (structures.shake_table, its modules identify and predict)."""
 
 from __future__ import annotations
 
@@ -16,9 +16,7 @@ from hypothesis import strategies as st
 import ground_motions
 import rrfrei
 import structures
-from structures.building import Isolator, ShearBuilding
-from structures.identify import identify_superstructure
-from structures.predict import predict_run
+from structures.building.shear_building import Isolator, ShearBuilding
 from structures.shake_table import (
     BNCS_WEIGHTS_KN,
     ConsistencyWarning,
@@ -31,6 +29,8 @@ from structures.shake_table import (
     read_run,
     write_run,
 )
+from structures.shake_table.identify import identify_superstructure
+from structures.shake_table.predict import predict_run
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "shake_table_bncs"
 

@@ -1,4 +1,4 @@
-"""``rrfrei shake-table`` and its pipeline (structures.shake_table_gap): the JSON it prints, its exit
+"""``rrfrei shake-table`` and its pipeline (structures.shake_table.gap): the JSON it prints, its exit
 codes, and the two mechanisms it adds (a law's state carried from run to run, a building driven by
 the runs one after the other).
 
@@ -24,10 +24,11 @@ import structures
 from rrfrei.app import cli
 from rrfrei.io import ShearTest, concat_tests
 from rrfrei.laws import get
-from structures import shake_table_gap as stg
-from structures.building import Isolator, ShearBuilding
+from structures.building.shear_building import Isolator, ShearBuilding
 from structures.shake_table import BNCS_WEIGHTS_KN, ShakeTableRun, write_run
-from structures.shake_table_gap import CHANNELS, predict_sequence, simulate_law
+from structures.shake_table import gap as stg
+from structures.shake_table.gap import simulate_law
+from structures.shake_table.sequence import CHANNELS, predict_sequence
 
 KEYS = {"law", "diagnosis", "verdict", "evidence", "combination", "where", "ranking", "extrapolation",
         "gap_before", "gap_after", "coverage", "band_width", "runs", "loop_fit", "calibration", "shrink"}
@@ -179,7 +180,7 @@ def test_a_calibration_run_without_a_superstructure_exits_2_before_any_isolator_
 
 
 def test_every_building_analysis_failing_exits_1_and_says_what_and_where(split, capsys, monkeypatch):
-    from structures import building_model
+    from structures.shake_table import building_model
 
     root, _, _ = split
 

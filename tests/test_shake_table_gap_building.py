@@ -1,4 +1,4 @@
-"""The building as the model (structures.building_model): a building simulated from the table
+"""The building as the model (structures.shake_table.building_model): a building simulated from the table
 accelerations and calibrated by output error recovers the parameters it was simulated with, carries
 the isolators' state from run to run, never lets a failed simulation end its optimiser, and its bands
 are judged by coverage and width.
@@ -9,85 +9,23 @@ under two records with rest between them, so the truth is known.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 
-import ground_motions
-import structures
-from rrfrei.gap.model import IsolatorFit
-from rrfrei.laws import get
-from structures.building import Isolator, ShearBuilding
-from structures.building_model import (
+from structures.shake_table.building_model import BuildingModel
+from structures.shake_table.sequence import CHANNELS, building_prediction, run_metrics
+from structures.shake_table.simulation import (
     FIT_CHANNELS,
     BuildingData,
-    BuildingModel,
     Superstructure,
-    calibration_test,
     measured_channels,
 )
-from structures.shake_table import BNCS_WEIGHTS_KN, ShakeTableRun
-from structures.shake_table_gap import CHANNELS, building_prediction, run_metrics
-
-MASSES = np.array(BNCS_WEIGHTS_KN) / 9.81
-K = np.array([125e3, 95e3, 98e3, 108e3, 60e3])
-PL = dict(k_init=20000.0, qd=80.0, alpha1=0.15, alpha2=0.0, mu=2.0)
-ZETA = 0.04
-
-
-def _runs(building: ShearBuilding, scales=(1.0, 1.8), seconds: float = 12.0):
-    """Runs cut from ONE simulation of (record, 10 s rest, record x 1.8, ...): the isolators' state
-    is carried from each run to the next, as on the shake table."""
-    r = ground_motions.load("elcentro")
-    n = int(seconds / r.dt)
-    pad = int(round(10.0 / r.dt))
-    accs = [s * np.asarray(r.accel[:n]) for s in scales]
-    parts = [np.zeros(1)]
-    starts = []
-    for a in accs:
-        if len(parts) > 1:
-            parts.append(np.zeros(pad))
-        starts.append(sum(p.size for p in parts))
-        parts.append(a)
-    resp = structures.time_history(building, ground_motions.Record("all", r.dt, np.concatenate(parts)))
-    runs = []
-    for i, (start, acc) in enumerate(zip(starts, accs)):
-        s = slice(start, start + n)
-        u0 = resp.isolator_disp[start - 1]
-        f0 = resp.floor_disp[start - 1]
-        runs.append(ShakeTableRun(
-            name=f"run{i + 1}", time=np.arange(n) * r.dt, table_accel=acc,
-            accel=np.column_stack([resp.base_accel_abs[s], resp.floor_accel_abs[s]]),
-            disp=np.column_stack([resp.isolator_disp[s] - u0, resp.floor_disp[s] - f0]),
-            masses=MASSES, level_names=("base", "f2", "f3", "f4", "f5", "roof")))
-    return runs
-
-
-@pytest.fixture(scope="module")
-def truth():
-    b = ShearBuilding(MASSES[1:], K, [4.27] * 5, ZETA, MASSES[0], Isolator("plasticity", PL))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return b, _runs(b)
-
-
-def _loop_start(params):
-    spec = get("plasticity")
-    p = spec.pack(params)
-    return IsolatorFit(spec=spec, p_opt=p, P=p[None, :].repeat(2, axis=0), sig=np.ones(2), sigma=1.0,
-                       noise=1.0, free=spec.param_names)
-
-
-def _model(runs, sup, start_params, draws=8):
-    cal = calibration_test(runs[:1], 50.0)
-    scales = {c: float(np.sqrt(np.mean(measured_channels(runs[0])[c] ** 2))) for c in CHANNELS}
-    return BuildingModel("plasticity", sup, cal, scales, draws=draws, loop_fit=_loop_start(start_params))
+from tests._shake_table_truth import MASSES, PL, ZETA, K, model_of
 
 
 def test_the_true_building_reproduces_every_run_it_was_simulated_with(truth):
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), PL)
+    m = model_of(runs, Superstructure.of(b), PL)
     x = np.array([{**PL, "k_scale": 1.0, "zeta": ZETA}[n] for n in m.layout.names])
     held = BuildingData(tuple(runs), observed=("run2",))
     st, out = m.simulate(x, held)
@@ -101,7 +39,7 @@ def test_a_held_out_run_starts_from_the_state_the_runs_before_it_left(truth):
     """The isolators yield in run 1 and keep a residual displacement: run 2 simulated alone (from a
     virgin, centred isolator) differs from run 2 driven after run 1, which is the measurement."""
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), PL)
+    m = model_of(runs, Superstructure.of(b), PL)
     x = np.array([{**PL, "k_scale": 1.0, "zeta": ZETA}[n] for n in m.layout.names])
     _, carried = m.simulate(x, BuildingData(tuple(runs), observed=("run2",)))
     _, alone = m.simulate(x, BuildingData((runs[1],)))
@@ -117,7 +55,7 @@ def test_output_error_recovers_the_superstructure_scale_and_the_isolator_law(tru
     b, runs = truth
     sup = Superstructure(MASSES, K * 0.8, ZETA, np.full(5, 4.27), "biased identification")
     start = {**PL, "k_init": 1.25 * PL["k_init"], "qd": 0.75 * PL["qd"], "alpha1": 0.2}
-    m = _model(runs, sup, start)
+    m = model_of(runs, sup, start)
     cal = BuildingData(tuple(runs), observed=("run1",))
     held = BuildingData(tuple(runs), observed=("run2",))
     fit = m.fit(cal, seed=0)
@@ -137,7 +75,7 @@ def test_a_failing_simulation_is_a_bad_point_never_an_exception(truth, monkeypat
     """Every third of the search's first 30 simulations fails (as a law's local Newton may, here and
     there): the fit still ends at the truth, started 25 % off, and says how many failed."""
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), {**PL, "qd": 0.75 * PL["qd"]})
+    m = model_of(runs, Superstructure.of(b), {**PL, "qd": 0.75 * PL["qd"]})
     m.global_evals = 0  # the local search alone: its count of failures is the injected one
     real = BuildingModel.simulate
     calls = {"n": 0}
@@ -157,7 +95,7 @@ def test_a_failing_simulation_is_a_bad_point_never_an_exception(truth, monkeypat
 
 def test_band_width_and_coverage_follow_their_definitions(truth):
     """A band of +-1 about a perfect median covers every sample and is 2 / RMS wide."""
-    from structures.shake_table_gap import SequencePrediction
+    from structures.shake_table.sequence import SequencePrediction
 
     _, runs = truth
     meas = {"run1": measured_channels(runs[0])}
@@ -176,7 +114,7 @@ def test_band_width_and_coverage_follow_their_definitions(truth):
 
 def test_blocks_are_time_windows_holding_every_fitted_channel(truth):
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), PL)
+    m = model_of(runs, Superstructure.of(b), PL)
     d = BuildingData(tuple(runs), observed=("run1", "run2"))
     g = m.groups(d)
     n = runs[0].time.size
@@ -192,10 +130,10 @@ def test_a_stronger_run_gets_a_proportionally_wider_band(truth):
     """The residual model is relative: with no parameter uncertainty, the band's width on each run
     is 2 x 1.96 sigma_c x the RMS of the run's predicted channel, so run 2 (1.8 x the input) gets a
     band wider in proportion to its response, not the calibration run's width."""
-    from structures.building_model import BuildingFit
+    from structures.shake_table.building_fit import BuildingFit
 
     b, runs = truth
-    m = _model(runs, Superstructure.of(b), PL)
+    m = model_of(runs, Superstructure.of(b), PL)
     x = np.array([{**PL, "k_scale": 1.0, "zeta": ZETA}[n] for n in m.layout.names])
     sig = {c: 0.1 for c in CHANNELS}
     fit = BuildingFit(model=m, x_opt=x, X=np.repeat(x[None, :], 4, axis=0), sigma_c=sig,

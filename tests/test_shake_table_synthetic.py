@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from structures.shake_table import ShakeTableRun, isolation_test
-from structures.shake_table_synthetic import (
+from structures.shake_table.synthetic import (
     SyntheticBuilding,
     energy_balance,
     simulate_building,

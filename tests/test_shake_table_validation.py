@@ -14,7 +14,7 @@ import math
 import pandas as pd
 import pytest
 
-from structures.shake_table_validation import ACCEPTED, FORMS, run_case, run_validation, summarise
+from structures.shake_table.validation import ACCEPTED, FORMS, run_case, run_validation, summarise
 
 KEYS = {"effect", "seed", "verdict", "named", "top1", "false_alarm", "holdout_nrmse_before",
         "holdout_nrmse_after", "shrink", "gap_shrink", "peak_disp_cal", "peak_disp_holdout"}
@@ -42,7 +42,7 @@ def test_every_form_has_its_accepted_answers_and_the_control_none():
 
 def test_a_failed_case_is_recorded_in_the_same_columns_and_is_neither_right_nor_an_alarm(
         tmp_path, monkeypatch):
-    import structures.shake_table_validation as v
+    import structures.shake_table.validation as v
 
     def fails(effect, seed, **kw):
         raise ValueError("time budget reached")

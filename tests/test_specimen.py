@@ -19,8 +19,8 @@ import pytest
 import ground_motions
 import structures
 from rrfrei.laws import get as get_law
-from structures.propagate import propagate
-from structures.specimen import SpecimenWarning, specimen_checks
+from structures.building.specimen import SpecimenWarning, specimen_checks
+from structures.propagation.propagate import propagate
 
 
 @pytest.fixture(scope="module")

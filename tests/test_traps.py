@@ -41,7 +41,7 @@ def test_a_command_module_that_fails_to_import_is_not_silently_dropped(monkeypat
 
 
 def test_load_building_reads_a_toml_path_and_lists_bundled_names_for_an_unknown_one(tmp_path):
-    bundled = Path(structures.__file__).parent / "buildings" / "three_story.toml"
+    bundled = Path(structures.__file__).parent / "building" / "buildings" / "three_story.toml"
     mine = tmp_path / "my.toml"
     mine.write_text(bundled.read_text())
     by_path = structures.load_building(str(mine))

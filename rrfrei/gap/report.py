@@ -260,7 +260,7 @@ def _design_lines(ds: DesignSummary, building=None) -> list[str]:
     if building is not None and len(building):
         med = building[building["record"] == "median"]
         lines += ["", "### Consequence for a building", "",
-                  f"The bundled five-story building (`structures/buildings/five_story.toml`) on "
+                  f"The bundled five-story building (`structures/building/buildings/five_story.toml`) on "
                   f"{building['record'].nunique() - 1} bundled records, its isolators at lower, nominal and "
                   "upper bound (force-like law parameters times lambda, `rrfrei.gap.design.bound_params`), "
                   "with and without the named effect. Medians over the records "
@@ -283,7 +283,7 @@ def write_report(rep: GapReport, out: str | Path, *, title: str | None = None,
     """Write ``out/report.md`` and the figures; return the Markdown path.
 
     ``design``: the design-quantity section (:func:`design_summary`, computed when None);
-    ``building``: the table of :func:`structures.consequences.building_consequences` (its figure
+    ``building``: the table of :func:`structures.propagation.consequences.building_consequences` (its figure
     saved by the caller as ``consequences.png``), or None for no building section.
     """
     out = Path(out)

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from rrfrei.io import read_toml
+from structures.building.checks import positive_vector
 from structures.shake_table.checks import (
     _MIN_FILTER_SAMPLES,
     ConsistencyReport,
@@ -36,7 +37,7 @@ G = 9.81
 BNCS_WEIGHTS_KN = (2275.1, 674.0, 703.0, 1036.3, 1078.1, 593.3)
 """Level weights [kN] of the BNCS building, bottom-up (base slab incl. its 406.6 kN addition,
 then floors 2-5 and the roof), from the source notebook; the unit kN is inferred (see
-``structures/data/shake_table_bncs/PROVENANCE.md``)."""
+``structures/shake_table/data/shake_table_bncs/PROVENANCE.md``)."""
 
 LEVEL_ORDERS = ("base-first", "roof-first")
 """How a list of levels (masses, weights, names, CSV columns) runs: from the base slab above the
@@ -51,7 +52,7 @@ DISP_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 MASS_UNITS = {"t": 1.0, "kg": 0.001}
 WEIGHT_UNITS = {"kN": 1.0, "N": 0.001, "MN": 1000.0}
 
-_DATA = Path(__file__).parent.with_name("data") / "shake_table_bncs"
+_DATA = Path(__file__).with_name("data") / "shake_table_bncs"
 
 
 class MetadataError(ValueError):
@@ -93,7 +94,7 @@ def _sidecar_levels(data: Mapping[str, Any], where: str) -> tuple[list[str] | No
         if unit not in MASS_UNITS:
             raise ValueError(f"{where}: mass_unit = {unit!r} is unknown; "
                              f"expected one of {', '.join(MASS_UNITS)}")
-        masses = _numbers(lv["masses"], f"{where}: [levels] masses") * MASS_UNITS[unit]
+        masses = positive_vector(f"{where}: [levels] masses", lv["masses"], unit) * MASS_UNITS[unit]
     elif "weights" in lv:
         unit = str(lv.get("weight_unit", ""))
         if unit not in WEIGHT_UNITS:
@@ -102,21 +103,8 @@ def _sidecar_levels(data: Mapping[str, Any], where: str) -> tuple[list[str] | No
         g = lv.get("g", G)
         if isinstance(g, bool) or not isinstance(g, (int, float)) or not (math.isfinite(g) and g > 0):
             raise ValueError(f"{where}: [levels] g = {g!r} is invalid: expected a finite number > 0 [m/s^2]")
-        masses = _numbers(lv["weights"], f"{where}: [levels] weights") * WEIGHT_UNITS[unit] / g
+        masses = positive_vector(f"{where}: [levels] weights", lv["weights"], unit) * WEIGHT_UNITS[unit] / g
     return names, masses
-
-
-def _numbers(values: Any, what: str) -> np.ndarray:
-    try:
-        a = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{what} must be a list of numbers, got {values!r}") from None
-    if a.ndim != 1 or a.size == 0:
-        raise ValueError(f"{what} must be a non-empty list of numbers, got {values!r}")
-    for i, x in enumerate(a):
-        if not (math.isfinite(x) and x > 0):
-            raise ValueError(f"{what}[{i}] = {x!r} is invalid: expected a finite number > 0")
-    return a
 
 
 def _option(value: Any, key: str, allowed: tuple[str, ...], where: str) -> str | None:
@@ -147,12 +135,12 @@ def _level_masses(masses, weights, weight_unit: str, side_masses, n_levels: int,
     if masses is not None and weights is not None:
         raise ValueError("give masses= or weights=, not both")
     if masses is not None:
-        m = _numbers(masses, "masses [t]")
+        m = positive_vector("masses", masses, "t")
     elif weights is not None:
         if weight_unit not in WEIGHT_UNITS:
             raise ValueError(f"weight_unit = {weight_unit!r} is unknown; "
                              f"expected one of {', '.join(WEIGHT_UNITS)}")
-        m = _numbers(weights, f"weights [{weight_unit}]") * WEIGHT_UNITS[weight_unit] / G
+        m = positive_vector("weights", weights, weight_unit) * WEIGHT_UNITS[weight_unit] / G
     elif side_masses is not None:
         m = side_masses
     else:

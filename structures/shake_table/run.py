@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from ground_motions import Record
-from structures.shake_table.checks import ConsistencyReport
+from structures.shake_table.consistency import ConsistencyReport
 from structures.shake_table.filters import lowpass
 
 __all__ = ["ShakeTableRun"]

@@ -18,7 +18,7 @@ from rrfrei.gap.report import design_summary, write_report
 from rrfrei.io import ShearTest
 from rrfrei.laws import get as get_law
 from rrfrei.notes import label, ordered
-from structures.consequences import building_consequences, plot_consequences
+from structures.propagation.consequences import building_consequences, plot_consequences
 
 EXAMPLE = """\
 Example:

@@ -11,7 +11,7 @@ from rrfrei.app.commands import HELPS
 from rrfrei.app.commands.args import add_command, add_json, paragraph
 from rrfrei.calibration.likelihood import batch_kernels
 from rrfrei.laws import get, specialise
-from structures.history import kernel as building_kernel
+from structures.dynamics.history import kernel as building_kernel
 
 EXAMPLE = """\
 Example:

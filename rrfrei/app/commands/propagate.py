@@ -15,17 +15,17 @@ import ground_motions
 from ground_motions.asce7 import SuiteSizeWarning
 from rrfrei.app.commands import HELPS
 from rrfrei.app.commands.args import add_command, add_json, add_no_progress, int_arg, paragraph
-from structures.inputs import resolve_building, resolve_records
-from structures.plan_design import (
+from structures.propagation.inputs import resolve_building, resolve_records
+from structures.propagation.plan_design import (
     TorsionAmplification,
     check_plan_law,
     plan_design_answers,
     plot_orbit,
     resolve_pairs,
 )
-from structures.plan_propagate import design_distribution, propagate_pairs, suite_design
-from structures.propagate import propagate
-from structures.summaries import ALL
+from structures.propagation.plan_propagate import design_distribution, propagate_pairs, suite_design
+from structures.propagation.propagate import propagate
+from structures.propagation.summaries import ALL
 
 EXAMPLE = """\
 Example:

@@ -13,8 +13,8 @@ from rrfrei.app.commands.args import add_command, add_report_options, paragraph,
 from rrfrei.laws import get
 from rrfrei.notes import Note
 from structures.shake_table import ConsistencyWarning
-from structures.shake_table_gap import BNCS_ORDER, shake_table_gap
-from structures.shake_table_report import write_report
+from structures.shake_table.gap import BNCS_ORDER, shake_table_gap
+from structures.shake_table.report import write_report
 
 EXAMPLE = """\
 Example:

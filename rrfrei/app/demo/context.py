@@ -40,7 +40,7 @@ class DemoSettings:
     gap_effects: tuple[str, ...] | None = None  # None: every catalogue effect
     n_samples: int = 100
     records: tuple[str, ...] | None = None  # None: every bundled record (as recorded)
-    # fragility: multiple stripe analysis at Sa(T_iso, 5 %) (structures.stripes)
+    # fragility: multiple stripe analysis at Sa(T_iso, 5 %) (structures.propagation.stripes)
     stripe_records: tuple[str, ...] | None = None  # None: every bundled record
     stripes: int = 7
     stripe_samples: int = 20

@@ -31,13 +31,13 @@ from rubber.fit import combinations
 from rubber.io import load_vhb4910
 from rubber.study import synthetic_test
 from structures import Isolator, load_building, time_history_batch
-from structures.plan_design import DEFAULT_LAMBDAS, plan_design_answers, plot_orbit
-from structures.propagate import propagate
-from structures.shake_table_gap import CHANNELS as CHANNELS_ST
-from structures.shake_table_gap import shake_table_gap
-from structures.shake_table_report import figures as shake_table_figures
-from structures.shake_table_report import gap_table as shake_table_gap_table
-from structures.stripes import StripeAnalysis, multiple_stripe_analysis
+from structures.propagation.plan_design import DEFAULT_LAMBDAS, plan_design_answers, plot_orbit
+from structures.propagation.propagate import propagate
+from structures.propagation.stripes import StripeAnalysis, multiple_stripe_analysis
+from structures.shake_table.gap import shake_table_gap
+from structures.shake_table.report import figures as shake_table_figures
+from structures.shake_table.report import gap_table as shake_table_gap_table
+from structures.shake_table.sequence import CHANNELS as CHANNELS_ST
 
 __all__ = ["STEPS", "step_calibrate", "step_compare", "step_gap", "step_propagate", "step_rubber",
            "step_shake_table", "step_tests", "step_validate"]
