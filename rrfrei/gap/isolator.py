@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
+from rrfrei.blas import one_blas_thread
 from rrfrei.budget import TimeBudget
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap.catalogue import Scales, catalogue
@@ -486,8 +487,9 @@ class IsolatorModel(GapModel):
         max_nfev = 200 * max(len(free), 1)
 
         def search(x0, nfev, guard):
-            return least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0,
-                                 max_nfev=nfev, diff_step=1e-6, callback=guard)
+            with one_blas_thread():  # also when a fit runs outside the engine (the building's loop fit)
+                return least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0,
+                                     max_nfev=nfev, diff_step=1e-6, callback=guard)
 
         runs = []
         for s0 in starts:

@@ -32,6 +32,7 @@ import math
 import numpy as np
 from scipy.optimize import least_squares
 
+from rrfrei.blas import one_blas_thread
 from rrfrei.budget import TimeBudget
 from rrfrei.errors import NumericalFailure
 from rrfrei.gap.model import FitResult
@@ -106,8 +107,9 @@ def fit_output_error(model, data: BuildingData, *, seed: int = 0, start=None,
         xs.append(x0)
 
     def search(x0, nfev):
-        return least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0, max_nfev=nfev,
-                             diff_step=1e-3)
+        with one_blas_thread():  # trf's SVD of a thin Jacobian: one thread is far faster on shared cores
+            return least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0, max_nfev=nfev,
+                                 diff_step=1e-3)
 
     # global start: CMA-ES over every parameter (a fit from the loop fit) or over the parameters
     # the given fits do not hold (an added effect's, with the superstructure's), from the first
