@@ -30,11 +30,11 @@ from rubber.fit import (
     _resolve_bounds,
     _run_cma,
     _Space,
-    least_squares_best,
 )
 from rubber.gap.effects import EFFECTS, augmented_stress, effect_values
 from rubber.gap.kernels import augmented_nominal
 from rubber.io import Test
+from rubber.polish import least_squares_best
 from rubber.prf import PARAM_NAMES, PRFParams
 
 __all__ = ["RubberFit", "RubberModel"]
