@@ -206,6 +206,36 @@ def test_the_second_process_first_does_the_work_ahead_of_a_step_that_runs_here(t
     assert not mark.exists()  # serial: nothing is compiled ahead (the step compiles what it needs)
 
 
+UNGUARDED = """
+import os, sys
+from rrfrei.app import demo
+
+def first(ctx, sec):
+    sec.reading = "first"
+
+def aside(ctx, sec):
+    sec.reading = f"pid {os.getpid()}"
+
+steps = (demo.Step("first", "First", first), demo.Step("aside", "Aside", aside, alone=True))
+result = demo.run_demo(sys.argv[1], quick=True, progress=False, steps=steps, parallel=True)
+print("RESULT", result.ok, result.report.sections[1].reading == f"pid {os.getpid()}")
+"""
+
+
+def test_a_script_without_a_main_guard_still_gets_its_page_the_steps_run_here(tmp_path):
+    """A spawned process re-imports the calling script; without ``if __name__ == "__main__"`` the
+    script starts a demo there too, and the second process dies: the steps run here instead."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "unguarded.py"
+    script.write_text(UNGUARDED)
+    run = subprocess.run([sys.executable, str(script), str(tmp_path / "page")], capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "RESULT True True" in run.stdout
+
+
 def test_a_bug_in_a_step_run_aside_is_raised_not_written_into_the_page(tmp_path):
     steps = (ASIDE[0], demo.Step("bug", "Bug", _bug, alone=True))
     with pytest.raises(TypeError, match="a bug, not a failure"):

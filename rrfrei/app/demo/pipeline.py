@@ -8,6 +8,7 @@ import time
 import traceback
 from collections.abc import Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -99,7 +100,10 @@ def _run_steps(steps: Sequence[Step], ctx: DemoContext, aside: set[str],
     """Run ``steps``: those in ``aside`` in one second (spawned) process, in the order they become
     ready (at once, or when the step they come ``after`` has finished here), the others here in
     page order.  The second process first does the work :data:`~rrfrei.app.demo.steps.AHEAD`
-    lists for the steps that run here.  Returns the sections by key."""
+    lists for the steps that run here.  If the second process cannot run (it died, or a script
+    without a ``__main__`` guard re-ran itself in it), the steps it had not finished run here.
+    Returns the sections by key."""
+    by_key = {s.key: s for s in steps}
     sections: dict[str, Section] = {}
     pending: dict[str, Future] = {}
     here = [s for s in steps if s.key not in aside]
@@ -116,14 +120,20 @@ def _run_steps(steps: Sequence[Step], ctx: DemoContext, aside: set[str],
     def submit_ready() -> None:
         for s in list(waiting):
             if s.after is None or s.after in done_here or s.after not in {h.key for h in here}:
-                pending[s.key] = pool.submit(run_step, s, _handoff(ctx))
+                try:
+                    pending[s.key] = pool.submit(run_step, s, _handoff(ctx))
+                except BrokenProcessPool:
+                    return  # left waiting: run here below
                 waiting.remove(s)
 
     ahead: list[Future] = []
     try:
         if pool is not None:
-            ahead = [pool.submit(_ahead, _steps.AHEAD[h.key], _handoff(ctx))
-                     for h in here if h.key in _steps.AHEAD]
+            try:
+                ahead = [pool.submit(_ahead, _steps.AHEAD[h.key], _handoff(ctx))
+                         for h in here if h.key in _steps.AHEAD]
+            except BrokenProcessPool:
+                pass
             submit_ready()
         bar = _steps.tqdm_or_plain(steps, progress, desc="rrfrei demo", unit="step")
         order = iter(bar)
@@ -135,13 +145,20 @@ def _run_steps(steps: Sequence[Step], ctx: DemoContext, aside: set[str],
             done_here.add(step.key)
             if waiting:
                 submit_ready()
-        for key, fut in pending.items():
+        for key in [*pending, *(s.key for s in waiting)]:
             next(order, None)
             if hasattr(bar, "set_postfix_str"):
                 bar.set_postfix_str(key)
-            sections[key] = fut.result()  # a bug in a step run aside is raised here, as it would be here
+            try:
+                # a bug in a step run aside is raised here, as it would be here
+                sections[key] = pending[key].result() if key in pending else run_step(by_key[key], ctx)
+            except BrokenProcessPool:
+                sections[key] = run_step(by_key[key], ctx)
         for fut in ahead:
-            fut.result()
+            try:
+                fut.result()
+            except BrokenProcessPool:
+                pass
         for _ in order:
             pass
     finally:
