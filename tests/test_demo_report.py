@@ -189,6 +189,11 @@ def test_a_step_run_aside_after_another_reads_the_tests_and_the_best_law_it_chos
     assert reads.endswith("['protocol9'] plasticity") and not reads.startswith(f"pid {os.getpid()}:")
 
 
+def _counted(ctx, sec):
+    ctx.results["runs"] = ctx.results.get("runs", 0) + 1
+    sec.reading = f"run {ctx.results['runs']}"
+
+
 def _compile_ahead(ctx):
     with open(os.environ["RRFREI_TEST_AHEAD"], "w") as f:
         f.write(str(os.getpid()))
@@ -198,11 +203,18 @@ def test_the_second_process_first_does_the_work_ahead_of_a_step_that_runs_here(t
     mark = tmp_path / "ahead.txt"
     monkeypatch.setenv("RRFREI_TEST_AHEAD", str(mark))
     monkeypatch.setattr(demo.steps, "AHEAD", {"later": _compile_ahead})
-    result = demo.run_demo(tmp_path / "page", quick=True, progress=False, steps=ASIDE, parallel=True)
+    steps = (demo.Step("first", "First", _counted), demo.Step("later", "Later", _counted),
+             demo.Step("aside", "Aside", _whose, alone=True), demo.Step("last", "Last", _counted))
+    result = demo.run_demo(tmp_path / "page", quick=True, progress=False, steps=steps, parallel=True)
     assert result.ok
     assert mark.read_text() != str(os.getpid())  # done, and not here
+    # the step with work ahead ran after the others here (its kernels compiled by then); the page
+    # keeps its order
+    readings = {s.key: s.reading for s in result.report.sections}
+    assert [s.key for s in result.report.sections] == ["first", "later", "aside", "last"]
+    assert (readings["first"], readings["last"], readings["later"]) == ("run 1", "run 2", "run 3")
     mark.unlink()
-    demo.run_demo(tmp_path / "serial", quick=True, progress=False, steps=ASIDE, parallel=False)
+    demo.run_demo(tmp_path / "serial", quick=True, progress=False, steps=steps, parallel=False)
     assert not mark.exists()  # serial: nothing is compiled ahead (the step compiles what it needs)
 
 

@@ -100,8 +100,9 @@ def _run_steps(steps: Sequence[Step], ctx: DemoContext, aside: set[str],
     """Run ``steps``: those in ``aside`` in one second (spawned) process, in the order they become
     ready (at once, or when the step they come ``after`` has finished here), the others here in
     page order.  The second process first does the work :data:`~rrfrei.app.demo.steps.AHEAD`
-    lists for the steps that run here.  If the second process cannot run (it died, or a script
-    without a ``__main__`` guard re-ran itself in it), the steps it had not finished run here.
+    lists for the steps that run here, which run last here.  If the second process cannot run
+    (it died, or a script without a ``__main__`` guard re-ran itself in it), the steps it had
+    not finished run here.
     Returns the sections by key."""
     by_key = {s.key: s for s in steps}
     sections: dict[str, Section] = {}
@@ -110,6 +111,9 @@ def _run_steps(steps: Sequence[Step], ctx: DemoContext, aside: set[str],
     waiting = [s for s in steps if s.key in aside]
     pool = None
     if waiting:
+        # a step whose kernels the second process compiles ahead runs last here, when they are
+        # compiled (:data:`~rrfrei.app.demo.steps.AHEAD`: no later step reads its results)
+        here.sort(key=lambda h: h.key in _steps.AHEAD)
         import multiprocessing
 
         # spawn, not fork: the parent's Numba thread pool and BLAS threads do not survive a fork

@@ -499,4 +499,6 @@ STEPS: tuple[Step, ...] = (
 )
 
 AHEAD: dict[str, Callable[[DemoContext], None]] = {"propagation": warm_building_kernels}
-"""Work the second process does first, for a step that runs here: compile its kernels ahead."""
+"""Work the second process does first, for a step that runs here: compile its kernels ahead.
+Such a step runs last in this process (its kernels are compiled by then), so no later step may
+read its results."""
