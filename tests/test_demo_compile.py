@@ -99,4 +99,7 @@ def test_the_calibration_the_gap_engine_and_a_user_compile_one_bouc_wen_loop():
     out = subprocess.run([sys.executable, "-c", _ONE_LOOP_FOR_EVERY_CALLER], capture_output=True,
                          text=True, timeout=900)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["1", "1"]
+    loop, fast = map(int, out.stdout.split())
+    # one signature of the loop (it loads from the kernel cache or compiles, either way one); the
+    # fast solver inside it is compiled here only with an empty cache, so at most one
+    assert loop == 1 and fast <= 1

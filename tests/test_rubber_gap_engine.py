@@ -68,6 +68,7 @@ def test_a_fit_carries_importance_corrected_laplace_draws_and_scores_each_one(mo
     assert [n.severity for n in fit.notes] == ["warning"]
 
 
+@pytest.mark.slow  # a validation study (the other two withheld effects are beside it)
 def test_the_one_engine_names_withheld_mullins_damage_on_rubber():
     cal, ho = synthetic("mullins")
     rep = diagnose(local_model(), cal, [ho], seed=0)
