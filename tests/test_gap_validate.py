@@ -216,6 +216,7 @@ def test_cli_writes_the_report_json_figure_and_checkpoint(tmp_path, monkeypatch,
     assert "--effects slip" in (out / "validation.md").read_text()
 
 
+@pytest.mark.slow  # a validation study: beside the full table below (the default tier is at its budget)
 def test_reduced_run_names_each_withheld_effect_by_its_first_form_and_no_effect_on_the_controls():
     """Seed 0, each effect of issue 7 by its first form at the size seed 0 draws (5 Hz, 50
     draws), and the four controls: the reduced run of issue 7, moved here."""
