@@ -25,7 +25,8 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    former "gain > 2 paired se" rule (issue 12).  The diagnosis is the significant effect with the
    largest held-out lpd gain (calibration gain without held-out data), or ``none``; with
    held-out data, a significant effect with fewer fitted parameters that no higher-ranked one
-   beats on the held-out blocks is named instead (parsimony, :func:`rrfrei.gap.scoring._parsimonious`);
+   predicts better on the held-out blocks by more than one standard error is named instead
+   (parsimony, the one-standard-error rule, :func:`rrfrei.gap.scoring._parsimonious`);
 4. confounding guard: a protocol whose amplitude only grows moves amplitude, dissipated energy
    and time together, so on the calibration test alone degradation, scragging, rollover and slip
    can stand in for one another.  Every refit starts from the baseline optimum and from the

@@ -4,7 +4,7 @@
 levels); :func:`_score` reads a refit against its reference by the block rule of
 :mod:`rrfrei.gap.decision` and returns an :class:`EffectScore`; :func:`_beats` and
 :func:`_beats_held_out` compare two fits by the block rank test; :func:`_parsimonious` picks the
-effect to name among significant ones.  The leave-one-group-out elpd is :func:`loco` (PSIS,
+effect to name among significant ones (one-standard-error rule, :func:`_ahead_by_one_se`).  The leave-one-group-out elpd is :func:`loco` (PSIS,
 Vehtari, Gelman & Gabry 2017, ``arviz.psislw``).
 """
 
@@ -182,28 +182,53 @@ def _n_free(fit: FitResult) -> int:
     return len(getattr(fit, "free", fit.params))
 
 
+def _ahead_by_one_se(gains: np.ndarray) -> bool:
+    """True when the per-block gains of one model over another total more than one standard error.
+
+    ``gains``: per-block held-out squared-error reductions ``g_b`` of the higher-ranked model
+    against the other (:class:`rrfrei.gap.decision.BlockParts`); standard error of their total
+    ``sqrt(m) sd(g)`` over the ``m`` blocks (blocks as independent replicates, the estimate of the
+    one-standard-error rule, Hastie, Tibshirani & Friedman 2009, sec. 7.10).
+    """
+    g = np.asarray(gains, dtype=float)
+    g = g[np.isfinite(g)]
+    if g.size < 2:
+        return False
+    return bool(g.sum() > math.sqrt(g.size) * g.std(ddof=1))
+
+
 def _parsimonious(sc: _Scorer, fits: dict, sig: list[EffectScore]) -> tuple[str, str]:
     """The significant effect to name with held-out data, and a note ("" when it is the leader).
 
     ``sig`` in ranking order (largest held-out lpd gain first).  An effect is *admissible* when
-    no significant effect ranked above it beats it on the held-out blocks (the block rank test of
-    :mod:`rrfrei.gap.decision` on the per-block squared-error reductions of the higher-ranked
-    model against it); the admissible effect with the fewest fitted parameters is named (the
-    leader on a tie).  This is the parsimony rule of model selection, the "one-standard-error
-    rule" (Hastie, Tibshirani & Friedman 2009, *The Elements of Statistical Learning*, 2nd ed.,
+    no significant effect ranked above it predicts the held-out blocks better by more than one
+    standard error (:func:`_ahead_by_one_se` on the per-block squared-error reductions of the
+    higher-ranked model against it); the admissible effect with the fewest fitted parameters is
+    named (the leader on a tie).  This is the "one-standard-error rule" of model selection
+    (Hastie, Tibshirani & Friedman 2009, *The Elements of Statistical Learning*, 2nd ed.,
     sec. 7.10): among models whose predictive error the data cannot tell apart, the simplest.  A
     flexible candidate (pinching: band and slack, five parameters) can then no longer take the
-    place of a simpler effect it only imitates, while an effect whose held-out gain is
-    significantly larger than a simpler one's keeps its place.
+    place of a simpler effect it only imitates, while an effect that predicts better than a
+    simpler one by more than the blocks' scatter keeps its place.
+
+    Why not the effect's own block rank test (p < ``ALPHA`` / 2) here: that test asks whether an
+    effect is real at all, and its signs ignore sizes.  Between two significant effects on an
+    earthquake record, the strong-motion windows carry the difference and the free-vibration
+    windows flip coins, so the rank test keeps the simpler model even where the other closes
+    most of the error the simpler one leaves; the tie of the one-standard-error rule is read from
+    the sizes of the gains.
     """
     leader = sig[0]
 
-    admissible = [o for i, o in enumerate(sig)
-                  if i == 0 or not any(_beats_held_out(sc, fits[a.law], fits[o.law]) for a in sig[:i])]
+    def beaten(i: int, o: EffectScore) -> bool:
+        return any(_ahead_by_one_se(sc.parts(fits[a.law], fits[o.law]).gains) for a in sig[:i])
+
+    admissible = [o for i, o in enumerate(sig) if i == 0 or not beaten(i, o)]
     best = min(admissible, key=lambda o: (_n_free(fits[o.law]), sig.index(o)))
     if best is leader:
         return leader.effect, ""
     return best.effect, (
         f"{best.effect} named before {leader.effect} (larger held-out gain): it has fewer fitted "
         f"parameters ({_n_free(fits[best.law])} against {_n_free(fits[leader.law])}) and no "
-        f"significant effect ranked above it beats it on the held-out blocks (parsimony)")
+        f"significant effect ranked above it predicts the held-out blocks better by more than one "
+        f"standard error (parsimony)")
