@@ -148,3 +148,14 @@ def test_a_stronger_run_gets_a_proportionally_wider_band(truth):
     rms1 = np.sqrt(np.mean(runs[0].isolator_disp ** 2))
     rms2 = np.sqrt(np.mean(runs[1].isolator_disp ** 2))
     assert rms2 > 1.5 * rms1
+
+
+def test_a_building_that_misses_its_own_calibration_runs_is_said_to_be_beyond_its_law():
+    from structures.shake_table.gap import MISFIT_NRMSE, calibration_misfit
+
+    # BNCS with `--law hdr`: the output-error building missed its calibration runs by 0.78-1.20
+    note = calibration_misfit("hdr", {"isolator_disp": 1.20, "isolator_force": 0.78, "roof_accel": 0.30})
+    assert note is not None and note.severity == "critical"
+    assert "'hdr'" in note and "isolator_disp 1.20" in note and "roof_accel" not in note
+    assert calibration_misfit("bouc_wen", {"isolator_disp": 0.11, "roof_accel": MISFIT_NRMSE}) is None
+    assert calibration_misfit("hdr", {"isolator_disp": float("nan")}) is not None  # no number is no fit

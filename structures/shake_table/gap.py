@@ -59,6 +59,7 @@ from rrfrei.gap.diagnose import Checkpoint, GapReport, diagnose, loco
 from rrfrei.gap.model import RETRY_SUBSTEPS, IsolatorModel, simulate_retry
 from rrfrei.io import ShearTest
 from rrfrei.jsonable import number as _num
+from rrfrei.notes import Note
 from structures.building.shear_building import Isolator, ShearBuilding
 from structures.shake_table import ShakeTableRun, available_runs, load_run, read_run
 from structures.shake_table.building_fit import BuildingFit
@@ -74,7 +75,8 @@ from structures.shake_table.sequence import (
 from structures.shake_table.simulation import BuildingData, calibration_test
 from structures.shake_table.where import residual_table
 
-__all__ = ["AUTO_LAWS", "BNCS_ORDER", "ShakeTableGap", "resolve_run", "shake_table_gap", "simulate_law"]
+__all__ = ["AUTO_LAWS", "BNCS_ORDER", "MISFIT_NRMSE", "ShakeTableGap", "calibration_misfit", "resolve_run",
+           "shake_table_gap", "simulate_law"]
 
 BNCS_ORDER = ("CNP100", "LAC100", "ICA50", "ICA100")
 """The bundled runs in the order of the BNCS base-isolated test program (Chen et al. 2016; the
@@ -259,6 +261,28 @@ class ShakeTableGap:
             "seconds": {k: _num(v) for k, v in self.seconds.items()},
             "notes": list(self.notes),
         }
+
+
+MISFIT_NRMSE = 0.5
+"""Calibration NRMSE of the baseline building above which its law is said not to describe it."""
+
+
+def calibration_misfit(law: str, calibration_nrmse: Mapping[str, float]) -> Note | None:
+    """A critical note when the building fitted by output error misses its own calibration runs.
+
+    ``calibration_nrmse``: channel -> NRMSE of the baseline building on the calibration runs.  An
+    error above :data:`MISFIT_NRMSE` of a channel's RMS on the data it was fitted to means that the
+    law (with the identified superstructure) cannot follow this building, so its held-out errors
+    and any effect named on top of it describe the law's failure, not the building.
+    """
+    bad = {c: v for c, v in calibration_nrmse.items() if not v <= MISFIT_NRMSE}
+    if not bad:
+        return None
+    worst = ", ".join(f"{c} {v:.2f}" for c, v in bad.items())
+    return Note(f"the building with {law!r} misses its own calibration runs (NRMSE {worst} > "
+                f"{MISFIT_NRMSE:g}): this law cannot describe the building, so the held-out errors "
+                f"and any effect named on it say little; try another law (--law auto picks by the "
+                f"isolation loops)", "critical")
 
 
 def _nums(d: Mapping) -> dict:
@@ -537,6 +561,9 @@ def shake_table_gap(
         loop_row[part] = vals or None
     seconds["predictions"] = _time.perf_counter() - t0
     gap_before = {"calibration": before.nrmse(cal_seq), "holdout": before.nrmse(ho_seq) if ho_seq else None}
+    misfit = calibration_misfit(base_law, gap_before["calibration"])
+    if misfit:
+        notes.append(misfit)
     gap_after = {"calibration": after.nrmse(cal_seq), "holdout": after.nrmse(ho_seq) if ho_seq else None}
     held = pooled(after, ho_seq) if ho_seq else {}
     cov = {c: v["coverage"] for c, v in held.items()}
