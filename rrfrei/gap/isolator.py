@@ -48,7 +48,6 @@ from rrfrei.gap.model import (
 from rrfrei.io import ShearTest, concat_tests
 from rrfrei.laws import LawSpec, get
 from rrfrei.laws.specialise import history
-from rrfrei.notes import Note
 
 __all__ = ["IsolatorFit", "IsolatorModel", "RETRY_SUBSTEPS", "simulate_retry"]
 
@@ -165,13 +164,7 @@ class IsolatorFit(FitResult):
         return self.spec.name
 
     notes: list = field(default_factory=list, repr=False)
-    """The texts :meth:`_add_note` appended, as :class:`rrfrei.notes.Note` (with a severity)."""
-
-    def _add_note(self, text: str, severity: str = "info") -> None:
-        """Append ``text`` to :attr:`note` once (the diagnosis reports every fit's note)."""
-        if text not in self.note:
-            self.note = f"{self.note}; {text}" if self.note else text
-            self.notes.append(Note(text, severity))
+    """The texts :meth:`add_note` recorded, as :class:`rrfrei.notes.Note` (with a severity)."""
 
     @property
     def params(self) -> dict[str, float]:  # type: ignore[override]
@@ -209,13 +202,13 @@ class IsolatorFit(FitResult):
         else:
             sig = self.sig[: F.shape[0]]
         if refined:
-            self._add_note(
+            self.add_note(
                 f"law '{self.spec.name}' on test '{dname}': {refined} of {max(n_ok, 1)} predictions "
                 f"ran with {'/'.join(map(str, RETRY_SUBSTEPS[1:]))} sub-increments per sample (the "
                 "law's local solve failed on the sample steps)")
         if n_ok < S:
             bad = sorted({int(c) for c in status[status != 0]})
-            self._add_note(
+            self.add_note(
                 f"law '{self.spec.name}' on test '{dname}': {S - n_ok} of {S} "
                 f"posterior draws failed (status {', '.join(map(str, bad))}, "
                 f"also with {RETRY_SUBSTEPS[-1]} sub-increments); "

@@ -29,6 +29,7 @@ import numpy as np
 
 from rrfrei.gap.catalogue import Scales
 from rrfrei.io import ShearTest
+from rrfrei.notes import Note
 
 __all__ = ["GapModel", "FitResult", "Prediction", "gaussian_loglik", "white_noise", "test_scales",
            "IsolatorModel", "IsolatorFit", "simulate_retry"]  # noqa: F822  (the last three: rrfrei.gap.isolator)
@@ -62,6 +63,22 @@ class FitResult(ABC):
 
     @abstractmethod
     def loglik(self, data) -> np.ndarray: ...
+
+    def add_note(self, text: str, severity: str = "info") -> None:
+        """Record ``text`` once (the diagnosis reports every fit's notes).
+
+        It goes to ``notes`` (a list of :class:`rrfrei.notes.Note`, with ``severity``) where the
+        fit keeps that list, and to the joined string ``note`` where the fit stores one (a fit
+        whose ``note`` is a property derives it from ``notes``).
+        """
+        notes = getattr(self, "notes", None)
+        joined = str(getattr(self, "note", "") or "")
+        if text in joined or (isinstance(notes, list) and any(str(n) == text for n in notes)):
+            return
+        if isinstance(notes, list):
+            notes.append(Note(text, severity))
+        if not isinstance(getattr(type(self), "note", None), property):
+            self.note = f"{joined}; {text}" if joined else text
 
 
 class GapModel(ABC):

@@ -21,7 +21,6 @@ from scipy.stats import norm as _norm
 from rrfrei.errors import NumericalFailure
 from rrfrei.gap.fitting import laplace_cov, laplace_factor
 from rrfrei.gap.model import LEVEL, FitResult, GapModel, Prediction, white_noise
-from rrfrei.notes import Note
 from rubber import integrate as _k
 from rubber.fit import (
     _EVAL_ERRORS,
@@ -127,8 +126,7 @@ class RubberFit(FitResult):
                 text = (f"PRF model {self.name!r} on {', '.join(t.name for t in tests)}: {failed} of "
                         f"{len(self.draws)} Laplace draws failed in the integrator; the band uses the "
                         "optimum's stress in their place")
-                if all(str(n) != text for n in self.notes):
-                    self.notes.append(Note(text, "critical" if 2 * failed > len(self.draws) else "warning"))
+                self.add_note(text, "critical" if 2 * failed > len(self.draws) else "warning")
             # the tests are kept so that their ids stay theirs
             self._memo[key] = (np.array(rows) if rows else f0[None, :], failed, tests)
         return self._memo[key][0]

@@ -118,7 +118,7 @@ class BuildingFit(FitResult):
                 st[j], o = self.model.simulate(U[j], data, tally=tally)
             outs.append(o)
         if tally:
-            self._add_note(f"the robust local solve replaced OpenSees' failed iteration (a deviation) at "
+            self.add_note(f"the robust local solve replaced OpenSees' failed iteration (a deviation) at "
                            f"{tally['robust_steps']} time steps of {tally['robust_sims']} posterior draws on "
                            f"{data.name}")
         ok = st[inv] == 0
@@ -131,13 +131,9 @@ class BuildingFit(FitResult):
         else:
             res = (ok, [outs[inv[i]] for i in range(inv.size) if ok[i]])
             if not ok.all():
-                self._add_note(f"{int((~ok).sum())} of {ok.size} posterior draws failed on {data.name}")
+                self.add_note(f"{int((~ok).sum())} of {ok.size} posterior draws failed on {data.name}")
         self._cache[key] = (data, res)
         return res
-
-    def _add_note(self, text: str) -> None:
-        if text not in self.note:
-            self.note = f"{self.note}; {text}" if self.note else text
 
     def channel_draws(self, data: BuildingData, run: str, channel: str) -> np.ndarray:
         """(S_ok, n) simulated ``channel`` of ``run`` [its unit] over the successful draws."""
