@@ -116,6 +116,62 @@ def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
     return int(status), F
 
 
+DIFF_STEP = 1e-6
+"""Relative step of the forward differences of the fits' Jacobian (scipy's ``diff_step``)."""
+
+
+def one_sided_jacobian(resid, lb: np.ndarray, ub: np.ndarray, big: float):
+    """``(fun, jac)`` for least squares: ``fun`` is ``resid`` remembering its last point, ``jac``
+    the forward-difference Jacobian of ``resid`` that least squares takes with ``diff_step =``
+    :data:`DIFF_STEP` (scipy's ``approx_derivative``, the same steps and numbers), except where a
+    forward step fails (``resid`` returns its failure value ``big`` everywhere: the law's local
+    iteration failed there): that column is the backward difference, and zero when both sides
+    fail.
+
+    An optimum can sit on the edge of the region where OpenSees' local iteration of a law fails
+    (a real test; its rounded parameters fail).  A failed step read as a difference gives a column
+    of size ``big / h``, and the trust region cannot then leave the start in any direction, even
+    along an added effect's parameter whose small value lowers the error: every refit ended at its
+    start.  The backward step stays on OpenSees' side of the edge.
+    """
+    from scipy.optimize._numdiff import approx_derivative
+
+    def failed(r: np.ndarray) -> bool:
+        return bool(r.size and r[0] == big and np.all(r == big))
+
+    last: dict = {}
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        r = resid(x)
+        last["x"], last["r"] = np.array(x, dtype=float), r
+        return r
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        hit = "x" in last and np.array_equal(last["x"], x)
+        f0 = last["r"] if hit else resid(x)  # least squares asks at the point it just evaluated
+        bad: list[np.ndarray] = []
+
+        def recording(xp: np.ndarray) -> np.ndarray:
+            r = resid(xp)
+            if failed(r):
+                bad.append(np.array(xp, dtype=float))
+            return r
+
+        J = approx_derivative(recording, x, method="2-point", rel_step=DIFF_STEP, f0=f0, bounds=(lb, ub))
+        J = np.atleast_2d(J)
+        if bad and not failed(f0):
+            for xp in bad:
+                j = int(np.argmax(np.abs(xp - x)))
+                h = float(xp[j] - x[j])
+                xm = np.array(x, dtype=float)
+                xm[j] = x[j] - h
+                fm = resid(xm) if lb[j] <= xm[j] <= ub[j] and h != 0.0 else None
+                J[:, j] = 0.0 if fm is None or failed(fm) else (f0 - fm) / h
+        return J
+
+    return fun, jac
+
+
 RETRY_SUBSTEPS = (1, 4, 16)
 """Sub-increments per sample tried, in turn, when a prediction's simulation fails
 (:func:`simulate_retry`)."""
@@ -479,10 +535,12 @@ class IsolatorModel(GapModel):
         # run to max_nfev
         max_nfev = 200 * max(len(free), 1)
 
+        fun, jac = one_sided_jacobian(resid, lb, ub, big)
+
         def search(x0, nfev, guard):
             with one_blas_thread():  # also when a fit runs outside the engine (the building's loop fit)
-                return least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0,
-                                     max_nfev=nfev, diff_step=1e-6, callback=guard)
+                return least_squares(fun, x0, bounds=(lb, ub), method="trf", x_scale=1.0,
+                                     max_nfev=nfev, jac=jac, callback=guard)
 
         runs = []
         for s0 in starts:
