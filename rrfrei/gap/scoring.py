@@ -4,8 +4,8 @@
 levels); :func:`_score` reads a refit against its reference by the block rule of
 :mod:`rrfrei.gap.decision` and returns an :class:`EffectScore`; :func:`_beats` and
 :func:`_beats_held_out` compare two fits by the block rank test; :func:`_parsimonious` picks the
-effect to name among significant ones (one-standard-error rule, :func:`_ahead_by_one_se`).  The leave-one-group-out elpd is :func:`loco` (PSIS,
-Vehtari, Gelman & Gabry 2017, ``arviz.psislw``).
+effect to name among significant ones (one-standard-error rule, :func:`_ahead_by_one_se`).  The
+leave-one-group-out elpd is :func:`loco` (PSIS, Vehtari, Gelman & Gabry 2017, ``arviz.psislw``).
 """
 
 from __future__ import annotations
