@@ -5,11 +5,14 @@
   line on stderr and exit status 2, never a traceback.
 
 All subprocesses of this module run concurrently in one fixture (they are independent), which keeps
-the module to a few seconds.
+the module to a few seconds.  The help of every command is printed by one subprocess (each one a
+fresh interpreter costs a few seconds of imports); ``rrfrei --help`` and every user error are
+processes of their own, as a user runs them.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -115,6 +118,35 @@ def _run(argv: list[str], cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run(argv, capture_output=True, text=True, timeout=300, cwd=cwd, env=env)
 
 
+HELPS = '''
+import contextlib, io, json, sys
+from rrfrei.app.cli import main as rrfrei_main
+from rubber.__main__ import main as rubber_main
+
+out = {}
+for key, prog, argv in json.loads(sys.argv[1]):
+    buf, err = io.StringIO(), io.StringIO()
+    try:
+        with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(err):
+            code = {"rrfrei": rrfrei_main, "rubber": rubber_main}[prog]([*argv, "--help"])
+    except SystemExit as exc:
+        code = 0 if exc.code is None else exc.code
+    out[key] = [code, buf.getvalue(), err.getvalue()]
+print(json.dumps(out))
+'''
+"""Prints ``{key: [exit status, stdout, stderr]}`` of ``PROG ARGV --help`` for each (key, prog, argv)."""
+
+
+def _helps(cwd: Path) -> dict[str, subprocess.CompletedProcess]:
+    """Every command's ``--help`` (but ``rrfrei --help``), from one subprocess."""
+    jobs = [(f"help/{name}", "rrfrei", [name]) for name in COMMAND_NAMES]
+    jobs += [(f"help/rubber-{name}", "rubber", [name]) for name in RUBBER_COMMANDS]
+    proc = _run([sys.executable, "-c", HELPS, json.dumps(jobs)], cwd)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return {key: subprocess.CompletedProcess(argv, code, out, err)
+            for (key, _, argv), (code, out, err) in zip(jobs, json.loads(proc.stdout).values())}
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     root = tmp_path_factory.mktemp("cli")
@@ -124,13 +156,12 @@ def runs(tmp_path_factory):
 
     files["p1"].write_text(pd.DataFrame({"time_s": (t := load_test("protocol1")).time,
                                          "disp_mm": 1e3 * t.disp, "force_kN": t.force}).to_csv(index=False))
-    jobs = {f"help/{name}": [*RRFREI, name, "--help"] for name in COMMAND_NAMES}
-    jobs.update({f"help/rubber-{name}": [*RUBBER, name, "--help"] for name in RUBBER_COMMANDS})
-    jobs["help/rrfrei"] = [*RRFREI, "--help"]
+    jobs = {"help/rrfrei": [*RRFREI, "--help"]}
     jobs.update({k: argv for k, (argv, _) in _cases(files).items()})
     with ThreadPoolExecutor(max_workers=4) as pool:
+        helps = pool.submit(_helps, root)
         futures = {k: pool.submit(_run, argv, root) for k, argv in jobs.items()}
-        return {k: fut.result() for k, fut in futures.items()}
+        return {**helps.result(), **{k: fut.result() for k, fut in futures.items()}}
 
 
 HELP_IDS = ["rrfrei", *COMMAND_NAMES, *(f"rubber-{n}" for n in RUBBER_COMMANDS)]

@@ -1,8 +1,12 @@
 """`rrfrei demo --quick` in a temporary folder: the page and every table it claims.
 
-The quick run happens once (module fixture, in a subprocess as a user would run it, its stderr
+The run happens once per size (module fixture, in a subprocess as a user would run it, its stderr
 going to a log as in CI, progress on); every test below reads its output.  A placeholder step
 (a workflow not wired in) fails these tests.
+
+Two sizes, the same checks: the default tier runs the command with a tiny variant of the quick
+settings (:data:`TINY`: every step, on fewer effects, draws and evaluations, which compiles fewer
+kernels); the slow tier (``pytest -m slow``) runs ``rrfrei demo --quick`` itself.
 """
 
 from __future__ import annotations
@@ -20,12 +24,35 @@ import pytest
 STEPS = ("tests", "calibration", "comparison", "validation", "gap", "propagation", "shake_table", "rubber")
 
 
-@pytest.fixture(scope="module")
-def quick_demo(tmp_path_factory):
+TINY = dict(
+    walkers=24, steps=60, gap_effects=("rollover", "degradation"), gap_draws=20, n_samples=6,
+    stripe_records=("rinaldi", "elcentro"), stripes=4, stripe_samples=4, rubber_evals=60,
+    rubber_polish_evals=30, predict_draws=30, shake_draws=6, shake_effects=("rate",),
+)
+"""The quick settings this much smaller in the default tier (the laws, tests, records, building and
+shake-table runs are the quick run's; every step still runs and every check below holds)."""
+
+_TINY_DEMO = """
+import dataclasses, sys
+from rrfrei.app.cli import main
+from rrfrei.app.demo.context import DemoSettings
+
+quick = DemoSettings.quick_run.__func__
+DemoSettings.quick_run = classmethod(
+    lambda cls, seed=0: dataclasses.replace(quick(cls, seed), **{tiny}))
+raise SystemExit(main(sys.argv[1:]))
+"""
+"""``rrfrei demo`` (the command's own main) with :data:`TINY` quick settings."""
+
+
+@pytest.fixture(scope="module", params=["tiny", pytest.param("quick", marks=pytest.mark.slow)])
+def quick_demo(request, tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "report"
     env = {**os.environ, "MPLBACKEND": "Agg"}
+    run = ([sys.executable, "-c", _TINY_DEMO.format(tiny=repr(TINY))] if request.param == "tiny"
+           else [sys.executable, "-m", "rrfrei.app"])
     proc = subprocess.run(
-        [sys.executable, "-m", "rrfrei.app", "demo", "--quick", "--out", str(out)],
+        [*run, "demo", "--quick", "--out", str(out)],
         capture_output=True, text=True, timeout=900, env=env,
     )
     manifest = json.loads((out / "manifest.json").read_text()) if (out / "manifest.json").exists() else None
