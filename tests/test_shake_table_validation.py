@@ -14,14 +14,15 @@ import math
 import pandas as pd
 import pytest
 
-from structures.shake_table.validation import ACCEPTED, FORMS, run_case, run_validation, summarise
+from structures.shake_table.validation import ACCEPTED, FORMS, PEAKS, run_case, run_validation, summarise
 
 KEYS = {"effect", "seed", "verdict", "named", "top1", "false_alarm", "holdout_nrmse_before",
         "holdout_nrmse_after", "shrink", "gap_shrink", "peak_disp_cal", "peak_disp_holdout"}
 
 
 def test_one_case_gives_a_verdict_and_the_held_out_error_before_and_after():
-    row = run_case("stiffening", 0, peaks=(0.6, 1.2), duration=6.0, effects=["stiffening"],
+    # a short sequence (6 s runs, no tail): the contract of a row, not a verdict the rule can give
+    row = run_case("stiffening", 0, peaks=(0.6, 1.2), duration=6.0, tail_s=0.0, effects=["stiffening"],
                    time_budget=120.0, draws=10, n_draws=10)
     assert KEYS <= set(row)
     assert row["verdict"] in {"stiffening", "none", "unexplained", "incomplete"}
@@ -32,6 +33,19 @@ def test_one_case_gives_a_verdict_and_the_held_out_error_before_and_after():
     assert row["peak_disp_holdout"] > row["peak_disp_cal"]
     s = summarise(pd.DataFrame([row]))
     assert s["cases"] == 1 and s["false_alarms_n"] == "0/0"
+
+
+def test_a_validation_run_is_long_enough_for_the_block_rule_to_name_an_effect():
+    """The building's blocks are 10 s windows of each run and the rank tests of the block rule
+    need at least 8 on the held-out run alone (p = 2^-m with every block gaining): the 20 s runs
+    of the first study gave 2, so no effect could be named whatever it closed."""
+    from rrfrei.gap.decision import min_blocks
+    from structures.shake_table.building_model import WINDOW_S
+    from structures.shake_table.validation import DURATION_S, TAIL_S
+
+    held_out = int((DURATION_S + TAIL_S) // WINDOW_S)
+    assert held_out >= min_blocks()
+    assert (len(PEAKS) - 1) * held_out >= min_blocks()  # the calibration runs too
 
 
 def test_every_form_has_its_accepted_answers_and_the_control_none():
