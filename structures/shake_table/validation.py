@@ -48,9 +48,15 @@ FORMS = {
     "viscous_power": 0.6,
     "softening": 1.0,
     "stiffening": 1.0,
-    "degradation": 1.0,
+    "degradation": 0.2,
 }
-"""Withheld forms and their default strength (:meth:`SyntheticBuilding.effect_params`)."""
+"""Withheld forms and their default strength (:meth:`SyntheticBuilding.effect_params`).
+
+``degradation`` at 0.2 (E_0 = 500 kN m): over the 90 s runs the isolation layer keeps about 75 %
+of its force at the end of the calibration runs and about half at the end of the held-out run,
+the upper range of what elastomeric and lead-rubber bearings lose under long motions; at 1.0 (set
+for 20 s runs) it kept 11 % after calibration and under 1 % after the held-out run, a failed
+isolation layer rather than a degrading one."""
 
 ACCEPTED = {
     "none": frozenset(),
@@ -134,7 +140,9 @@ def run_case(effect: str, seed: int, *, strength: float | None = None,
     sh = steps[-1].get("shrink") if isinstance(steps[-1].get("shrink"), dict) else {}
     ci = sh.get("ci") or [math.nan, math.nan]
     named = verdict not in NOT_NAMED
-    top = res.report.ranking[0] if res.report.ranking else None  # the best-ranked candidate, named or not
+    # the named effect's score, else the best-ranked candidate's (what came closest, and why not)
+    top = next((e for e in res.report.ranking if e.effect == verdict), None) or \
+        (res.report.ranking[0] if res.report.ranking else None)
     nb = {k: getattr(getattr(top, f"blocks_{k}", None), "blocks", math.nan)
           for k in ("calibration", "holdout")}
     return {
