@@ -41,7 +41,7 @@ import pandas as pd
 
 from structures.shake_table.synthetic import DISP_NOISE_M, SyntheticBuilding, synthetic_sequence, with_effect
 
-__all__ = ["ACCEPTED", "FORMS", "run_case", "run_validation", "summarise"]
+__all__ = ["ACCEPTED", "FORMS", "markdown", "run_case", "run_validation", "summarise"]
 
 FORMS = {
     "none": 0.0,
@@ -217,6 +217,31 @@ def summarise(df: pd.DataFrame) -> dict:
     return out
 
 
+def markdown(df: pd.DataFrame) -> str:
+    """The cases as a Markdown table, one row per form and seed: the verdict, the held-out
+    isolator-displacement NRMSE before -> after and its shrink, the diagnosis's held-out
+    systematic-gap shrink [90 % interval], and for a case that names nothing the candidate that
+    came closest with the rule's reading of it."""
+    def pct(x):
+        return "-" if not math.isfinite(float(x)) else f"{100 * float(x):.0f} %"
+
+    lines = ["| form | seed | verdict | held-out NRMSE before -> after | shrink | gap shrink [90 % CI] | "
+             "closest candidate: why not named |", "|---|---|---|---|---|---|---|"]
+    order = {f: k for k, f in enumerate(FORMS)}
+    for r in sorted(df.to_dict("records"), key=lambda r: (order.get(r["effect"], 99), int(r["seed"]))):
+        if str(r["verdict"]) == "failed":
+            lines.append(f"| {r['effect']} | {int(r['seed'])} | failed | - | - | - | {r['error']} |")
+            continue
+        named = str(r["named"]).lower() == "true"
+        ci = (f"{pct(r['gap_shrink'])} [{pct(r['gap_shrink_lo'])}, {pct(r['gap_shrink_hi'])}]"
+              if named else "-")
+        why = "" if named else f"{r['top_candidate']}: {r['top_why']}"
+        lines.append(f"| {r['effect']} | {int(r['seed'])} | {r['verdict']} | "
+                     f"{float(r['holdout_nrmse_before']):.3f} -> {float(r['holdout_nrmse_after']):.3f} | "
+                     f"{pct(r['shrink'])} | {ci} | {why} |")
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True, help="CSV of the cases (appended; resumes)")
@@ -227,6 +252,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help=f"table motion per run [s] (default %(default)s; plus {TAIL_S:g} s free vibration)")
     a = ap.parse_args(argv)
     df = run_validation(a.forms, a.seeds, out=a.out, time_budget=a.time_budget, duration=a.duration)
+    print(markdown(df))
     print(summarise(df))
     return 0
 
