@@ -40,14 +40,14 @@ Every channel then gets white Gaussian noise, independent per channel, in the fo
 instrument (the truth is kept in ``run.meta["truth"]``):
 
 * accelerations (table and levels): standard deviation ``noise`` times the channel's RMS (2 % by
-  default, 6-60 mg on these runs: above the 0.1-1 mg floor of a force-balance or MEMS
-  accelerometer over 25 Hz, so it also stands for mounting and cross-axis errors);
+  default, 0.2-1 mg on the validation runs: at or above the 0.1-1 mg floor of a force-balance
+  or MEMS accelerometer over 25 Hz);
 * displacements (every level, relative to the table): a fixed standard deviation ``disp_noise``
   [m], the same on every level and every run.  A displacement transducer (string potentiometer,
   LVDT) has a noise set by its range and its acquisition channel, not by the motion it measures:
   each level's transducer spans the isolation layer's stroke (the levels ride on it), and a
-  fraction of a per mil of that span is electrical noise.  The default 0.05 mm is 0.025 % of the
-  200 mm span of a +-100 mm transducer (a few millivolts on a +-10 V channel).  Noise in
+  fraction of a per mil of that span is electrical noise.  The default 0.05 mm is 1/6000 of the
+  300 mm span of a +-150 mm transducer (a few millivolts on a +-10 V channel).  Noise in
   proportion to each level's RMS (the earlier model) made the roof's noise grow with the
   isolator's motion, so the largest runs had the noisiest drifts, the reverse of a real table.
 
