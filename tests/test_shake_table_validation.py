@@ -105,4 +105,4 @@ def test_validation_subset_every_case_finishes_and_a_named_effect_never_worsens_
     s = summarise(df)
     controls = df[df["effect"] == "none"]
     assert _flag(controls["false_alarm"]).sum() <= len(controls) // 3, controls[["seed", "verdict"]]
-    assert bool(df.loc[df["effect"] == "stiffening", "top1"].iloc[0]), s["verdicts"]
+    assert _flag(df.loc[df["effect"] == "stiffening", "top1"]).all(), s["verdicts"]
