@@ -76,7 +76,7 @@ def test_a_failed_case_is_recorded_in_the_same_columns_and_is_neither_right_nor_
 
 
 SLOW_FORMS = ("none", "stiffening", "degradation")
-"""The slow tier's subset of the study (seed 0; about 3 minutes a case on 2 idle cores): the control,
+"""The slow tier's subset of the study (seed 0; 150-235 s a case at load 9-13): the control,
 the form whose own candidate comes first on every seed, and a form whose named rival must not
 worsen the building.  The full table (5 forms x 3 seeds, about an hour) is the documented command
 of docs/gap/validation_building.md."""
