@@ -10,6 +10,7 @@ import pytest
 
 from structures.shake_table import ShakeTableRun, isolation_test
 from structures.shake_table.synthetic import (
+    DISP_NOISE_M,
     SyntheticBuilding,
     energy_balance,
     simulate_building,
@@ -89,23 +90,51 @@ def test_isolation_force_is_minus_the_sum_of_mass_times_absolute_acceleration():
 
 def test_a_sequence_is_shake_table_runs_with_state_carried_and_noise_on_every_channel():
     b = with_effect(SyntheticBuilding(), "degradation", 1.0)
-    runs = synthetic_sequence(b, (0.5, 1.5), seed=4, noise=0.03, duration=6.0)
-    clean = synthetic_sequence(b, (0.5, 1.5), seed=4, noise=0.0, duration=6.0)
+    runs = synthetic_sequence(b, (0.5, 1.5), seed=4, noise=0.03, disp_noise=2e-4, duration=6.0, tail_s=0.0)
+    clean = synthetic_sequence(b, (0.5, 1.5), seed=4, noise=0.0, disp_noise=0.0, duration=6.0, tail_s=0.0)
     assert [r.name for r in runs] == ["SYN1", "SYN2"]
     for r, c in zip(runs, clean):
         assert isinstance(r, ShakeTableRun) and r.rate_hz == pytest.approx(50.0)
         isolation_test(r)  # the pipeline's isolation loop reads it
-        for x, y in ((r.table_accel, c.table_accel), (r.accel, c.accel), (r.disp, c.disp)):
+        # accelerometers: 3 % of each channel's RMS; displacement transducers: 0.2 mm on every level
+        for x, y in ((r.table_accel, c.table_accel), (r.accel, c.accel)):
             e = (x - y).reshape(len(x), -1)
             rms = np.sqrt(np.mean(y.reshape(len(y), -1) ** 2, axis=0))
             np.testing.assert_allclose(np.std(e, axis=0), 0.03 * rms, rtol=0.15)
+        np.testing.assert_allclose(np.std(r.disp - c.disp, axis=0), 2e-4, rtol=0.15)
     # the second run starts where the first left the building (degraded): its loop is weaker
     # than the same motion on a virgin building
-    fresh = synthetic_sequence(b, (1.5,), seed=4, noise=0.0, duration=6.0)[0]
+    fresh = synthetic_sequence(b, (1.5,), seed=4, noise=0.0, disp_noise=0.0, duration=6.0, tail_s=0.0)[0]
     f2 = -(clean[1].accel @ clean[1].masses)
     f0 = -(fresh.accel @ fresh.masses)
     assert np.max(np.abs(f2)) < np.max(np.abs(f0))
     assert clean[1].meta["truth"]["effect"] == "degradation"
+
+
+def test_a_displacement_transducer_is_as_noisy_on_a_small_run_as_on_a_large_one():
+    """A transducer's noise is set by its range and its channel, not by the motion: the roof's
+    displacement noise is the same on a run at a third of the table motion (the earlier model,
+    2 % of each level's RMS, made it smaller there in proportion to the motion)."""
+    b = SyntheticBuilding()
+    kw = dict(seed=5, duration=6.0, tail_s=0.0, rest_s=0.0)
+    noisy = synthetic_sequence(b, (0.5, 1.5), noise=0.02, **kw)
+    clean = synthetic_sequence(b, (0.5, 1.5), noise=0.0, disp_noise=0.0, **kw)
+    sd = [np.std(n.disp - c.disp, axis=0) for n, c in zip(noisy, clean)]
+    np.testing.assert_allclose(sd[0], DISP_NOISE_M, rtol=0.15)
+    np.testing.assert_allclose(sd[0], sd[1], rtol=0.2)
+    assert np.std(clean[1].disp[:, -1]) > 2.0 * np.std(clean[0].disp[:, -1])
+
+
+def test_a_run_records_the_free_vibration_after_the_table_stops():
+    b = SyntheticBuilding()
+    run = synthetic_sequence(b, (1.0,), seed=6, noise=0.0, disp_noise=0.0, duration=4.0, tail_s=3.0)[0]
+    assert run.time[-1] == pytest.approx(7.0)
+    tail = run.time > 4.0
+    assert np.all(run.table_accel[tail] == 0.0)
+    # the building still moves after the table stops, and its motion dies out
+    roof = run.accel[:, -1]
+    assert np.max(np.abs(roof[tail])) > 0.0
+    assert np.max(np.abs(roof[run.time > 6.0])) < np.max(np.abs(roof[run.time <= 4.0]))
 
 
 def test_bad_inputs_name_the_field():
@@ -113,3 +142,7 @@ def test_bad_inputs_name_the_field():
         SyntheticBuilding(effect="creep")
     with pytest.raises(ValueError, match="peaks"):
         synthetic_sequence(SyntheticBuilding(), (1.0, -2.0))
+    with pytest.raises(ValueError, match="disp_noise = -0.001"):
+        synthetic_sequence(SyntheticBuilding(), (1.0,), disp_noise=-1e-3)
+    with pytest.raises(ValueError, match="tail_s = -1"):
+        synthetic_sequence(SyntheticBuilding(), (1.0,), tail_s=-1.0)

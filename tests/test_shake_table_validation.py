@@ -1,10 +1,12 @@
 """Validation of the building-level diagnosis on independently simulated buildings (issue 27.7).
 
-Default tier: one small case, the contract of a row and of the summary.  Slow tier: every
-withheld form and the control over three seeds through the public entry point; the numbers go
-to docs/gap/validation_building.md (command there).  What the slow tier asserts is what the
-issue asks of the tool whatever the numbers: every case finishes (no candidate lost to numerics)
-and a named effect never makes the held-out building worse.
+Default tier: one small case, the contract of a row and of the summary, and that a study's runs
+are long enough for the block rule.  Slow tier: a subset of the study (seed 0: the control and
+stiffening) through the public entry point; the full table (every form over three seeds) is the
+command of docs/gap/validation_building.md.  What the slow tier asserts is what the issue asks of
+the tool whatever the numbers: every case finishes (no candidate lost to numerics), a named effect
+never makes the held-out building worse, few false alarms, and the diagnosis pointing at the
+withheld stiffening.
 """
 
 from __future__ import annotations
@@ -14,14 +16,15 @@ import math
 import pandas as pd
 import pytest
 
-from structures.shake_table.validation import ACCEPTED, FORMS, run_case, run_validation, summarise
+from structures.shake_table.validation import ACCEPTED, FORMS, PEAKS, run_case, run_validation, summarise
 
 KEYS = {"effect", "seed", "verdict", "named", "top1", "false_alarm", "holdout_nrmse_before",
         "holdout_nrmse_after", "shrink", "gap_shrink", "peak_disp_cal", "peak_disp_holdout"}
 
 
 def test_one_case_gives_a_verdict_and_the_held_out_error_before_and_after():
-    row = run_case("stiffening", 0, peaks=(0.6, 1.2), duration=6.0, effects=["stiffening"],
+    # a short sequence (6 s runs, no tail): the contract of a row, not a verdict the rule can give
+    row = run_case("stiffening", 0, peaks=(0.6, 1.2), duration=6.0, tail_s=0.0, effects=["stiffening"],
                    time_budget=120.0, draws=10, n_draws=10)
     assert KEYS <= set(row)
     assert row["verdict"] in {"stiffening", "none", "unexplained", "incomplete"}
@@ -32,6 +35,19 @@ def test_one_case_gives_a_verdict_and_the_held_out_error_before_and_after():
     assert row["peak_disp_holdout"] > row["peak_disp_cal"]
     s = summarise(pd.DataFrame([row]))
     assert s["cases"] == 1 and s["false_alarms_n"] == "0/0"
+
+
+def test_a_validation_run_is_long_enough_for_the_block_rule_to_name_an_effect():
+    """The building's blocks are 10 s windows of each run and the rank tests of the block rule
+    need at least 8 on the held-out run alone (p = 2^-m with every block gaining): the 20 s runs
+    of the first study gave 2, so no effect could be named whatever it closed."""
+    from rrfrei.gap.decision import min_blocks
+    from structures.shake_table.building_model import WINDOW_S
+    from structures.shake_table.validation import DURATION_S, TAIL_S
+
+    held_out = int((DURATION_S + TAIL_S) // WINDOW_S)
+    assert held_out >= min_blocks()
+    assert (len(PEAKS) - 1) * held_out >= min_blocks()  # the calibration runs too
 
 
 def test_every_form_has_its_accepted_answers_and_the_control_none():
@@ -59,16 +75,40 @@ def test_a_failed_case_is_recorded_in_the_same_columns_and_is_neither_right_nor_
     assert len(run_validation(["none", "stiffening"], [0], out=out, progress=False)) == 2
 
 
+SLOW_FORMS = ("none", "stiffening")
+"""The slow tier's subset of the study (seed 0; 150-235 s a case at load 9-13): the control and
+the form whose own candidate comes first on every seed (with ``degradation`` too the test took
+9 minutes at load 7-9, over the slow tier's 8).  The full table (5 forms x 3 seeds, about an
+hour) is the documented command of docs/gap/validation_building.md."""
+
+
 @pytest.mark.slow
-@pytest.mark.xfail(reason="measured on db20198: with seed 2 the superstructure identification "
-                          "rejects every calibration run (top-story R^2 < 0.8 at 2 % noise), so 4 "
-                          "of 15 cases fail (docs/gap/validation_building.md)", strict=False)
-def test_validation_table_every_case_finishes_and_a_named_effect_never_worsens_the_building(tmp_path):
-    df = run_validation(tuple(FORMS), (0, 1, 2), out=tmp_path / "cases.csv", progress=False,
-                        time_budget=240.0)
-    assert len(df) == 3 * len(FORMS)
+def test_validation_subset_every_case_finishes_and_a_named_effect_never_worsens_the_building(tmp_path):
+    """What the issue asks of the tool on buildings it was not written for, whatever the numbers:
+    every case finishes with every candidate scored (none lost to numerics) on 8+ blocks each
+    side, a named effect never makes the held-out building worse, and at most a third of the
+    controls raise a false alarm.
+
+    Top-1: the withheld isolator stiffening leaves the largest held-out gap of the forms and on
+    every seed of the study its own candidate is the one named or the closest, closing 18-83 % of
+    the held-out systematic gap (more than the rule's 10 %).  Whether it is *named* rests on 9
+    held-out blocks, where one losing block decides (8/9 gaining gave p = 0.0039 on seed 0 and
+    0.0059 on seed 2, against 0.005), so the name is not asserted: the test asserts that the
+    diagnosis points at the right effect with a shrink the rule counts."""
+    from rrfrei.gap.decision import MIN_SHRINK
+    from structures.shake_table.validation import _flag
+
+    df = run_validation(SLOW_FORMS, (0,), out=tmp_path / "cases.csv", progress=False,
+                        time_budget=1800.0)
+    assert len(df) == len(SLOW_FORMS)
     assert not (df["verdict"] == "failed").any(), df[df["verdict"] == "failed"]
-    named = df[df["named"].astype(bool)]
+    assert (df["skipped"].fillna("") == "").all(), df[["effect", "skipped"]]
+    assert (df["blocks_holdout"] >= 8).all() and (df["blocks_cal"] >= 8).all()
+    named = df[_flag(df["named"])]
     assert (named["shrink"] >= 0.0).all(), named[["effect", "seed", "verdict", "shrink"]]
-    s = summarise(df)
-    assert s["cases"] == len(df) and 0.0 <= s["top1"] <= 1.0 and 0.0 <= s["false_alarms"] <= 1.0
+    controls = df[df["effect"] == "none"]
+    assert _flag(controls["false_alarm"]).sum() <= len(controls) // 3, controls[["seed", "verdict"]]
+    stiff = df[df["effect"] == "stiffening"].iloc[0]
+    assert stiff["top_candidate"] == "stiffening", stiff[["verdict", "top_candidate", "top_why"]]
+    assert stiff["top_shrink_holdout"] > MIN_SHRINK, stiff[["verdict", "top_shrink_holdout"]]
+    assert stiff["verdict"] in {"stiffening", "unexplained"}, summarise(df)["verdicts"]

@@ -36,8 +36,24 @@ The *withheld effects* (forms the project's catalogue does not hold verbatim), `
 Integration: classical RK4 at ``substeps`` sub-steps per output sample, the table acceleration
 linear between samples.  The absolute level accelerations are the equation's right-hand side
 divided by the masses (a_i = x_i'' + a_g), so -sum m_i a_i is the isolation-layer force exactly.
-Every channel then gets white Gaussian noise of standard deviation ``noise`` times its RMS
-(independent per channel; the truth is kept in ``run.meta["truth"]``).
+Every channel then gets white Gaussian noise, independent per channel, in the form of its
+instrument (the truth is kept in ``run.meta["truth"]``):
+
+* accelerations (table and levels): standard deviation ``noise`` times the channel's RMS (2 % by
+  default, 0.2-1 mg on the validation runs: at or above the 0.1-1 mg floor of a force-balance
+  or MEMS accelerometer over 25 Hz);
+* displacements (every level, relative to the table): a fixed standard deviation ``disp_noise``
+  [m], the same on every level and every run.  A displacement transducer (string potentiometer,
+  LVDT) has a noise set by its range and its acquisition channel, not by the motion it measures:
+  each level's transducer spans the isolation layer's stroke (the levels ride on it), and a
+  fraction of a per mil of that span is electrical noise.  The default 0.05 mm is 1/6000 of the
+  300 mm span of a +-150 mm transducer (a few millivolts on a +-10 V channel).  Noise in
+  proportion to each level's RMS (the earlier model) made the roof's noise grow with the
+  isolator's motion, so the largest runs had the noisiest drifts, the reverse of a real table.
+
+Run length: real shake-table runs are long (tens of seconds of strong motion, then the building's
+free vibration recorded before the table stops); :func:`synthetic_sequence` records ``duration``
+seconds of table motion and ``tail_s`` seconds of free vibration per run.
 
 Table motions: :func:`table_motion` is a filtered, enveloped white noise (a Kanai-Tajimi-like
 ground motion, seeded); :func:`synthetic_sequence` scales one motion to increasing peaks and
@@ -55,8 +71,8 @@ import scipy.signal
 
 from structures.shake_table import ShakeTableRun
 
-__all__ = ["EFFECTS", "SyntheticBuilding", "energy_balance", "simulate_building", "synthetic_sequence",
-           "table_motion", "with_effect"]
+__all__ = ["DISP_NOISE_M", "EFFECTS", "SyntheticBuilding", "energy_balance", "simulate_building",
+           "synthetic_sequence", "table_motion", "with_effect"]
 
 EFFECTS = ("none", "viscous_power", "softening", "stiffening", "degradation")
 """The withheld effects (module docstring); ``"none"`` is the control."""
@@ -265,22 +281,38 @@ def _simulate(b, table_accel, dt, substeps, state):
     return disp, vel, acc, fiso, y
 
 
+DISP_NOISE_M = 5.0e-5
+"""Default standard deviation of the displacement transducers' noise [m] (module docstring)."""
+
+
 def synthetic_sequence(b: SyntheticBuilding, peaks: Sequence[float] = (1.0, 2.0, 3.0, 4.5), *,
-                       seed: int = 0, noise: float = 0.02, duration: float = 20.0,
+                       seed: int = 0, noise: float = 0.02, disp_noise: float = DISP_NOISE_M,
+                       duration: float = 80.0, tail_s: float = 10.0,
                        rate_hz: float = 50.0, substeps: int = 10, rest_s: float = 5.0,
                        motion_seed: int | None = None, prefix: str = "SYN") -> list[ShakeTableRun]:
     """Runs of ``b`` under one table motion scaled to ``peaks`` [m/s^2], in order, state carried.
 
-    Between runs the building rests ``rest_s`` seconds (no table motion), as on a real table.
-    ``seed`` draws the noise of every channel (``noise`` x the channel's RMS, per run);
-    ``motion_seed`` (default ``seed``) the table motion.  Each run's ``meta["truth"]`` holds the
-    building, the effect and its parameters.
+    Each run records ``duration`` seconds [s] of table motion and then ``tail_s`` seconds of the
+    building's free vibration (table at rest); between runs the building rests ``rest_s`` more
+    seconds, unrecorded, as on a real table.  ``seed`` draws the noise of every channel
+    (accelerations: ``noise`` x the channel's RMS; displacements: ``disp_noise`` [m], module
+    docstring); ``motion_seed`` (default ``seed``) the table motion.  Each run's ``meta["truth"]``
+    holds the building, the effect and its parameters.
     """
     if not peaks or any(not p > 0 for p in peaks):
         raise ValueError(f"peaks = {peaks!r}: expected positive table-acceleration peaks [m/s^2]")
     if not noise >= 0:
-        raise ValueError(f"noise = {noise!r}: expected a fraction >= 0 of each channel's RMS")
+        raise ValueError(f"noise = {noise!r}: expected a fraction >= 0 of each acceleration channel's RMS")
+    if not disp_noise >= 0:
+        raise ValueError(f"disp_noise = {disp_noise!r}: expected a standard deviation >= 0 [m]")
+    if not duration > 0 or not tail_s >= 0 or not rest_s >= 0:
+        raise ValueError(f"duration = {duration!r}, tail_s = {tail_s!r}, rest_s = {rest_s!r}: expected "
+                         "a duration > 0 and a tail and a rest >= 0 [s]")
     shape, t = table_motion(duration, rate_hz, seed=seed if motion_seed is None else motion_seed)
+    n_tail = int(round(tail_s * rate_hz))
+    if n_tail:
+        shape = np.concatenate([shape, np.zeros(n_tail)])
+        t = np.arange(shape.size) / rate_hz
     dt = 1.0 / rate_hz
     rng = np.random.default_rng([seed, 7])
     state = None
@@ -304,10 +336,10 @@ def synthetic_sequence(b: SyntheticBuilding, peaks: Sequence[float] = (1.0, 2.0,
 
         runs.append(ShakeTableRun(
             name=f"{prefix}{k + 1}", time=t.copy(), table_accel=noisy(ag), accel=noisy(acc),
-            disp=noisy(disp), masses=np.asarray(b.masses, dtype=float),
+            disp=disp + disp_noise * rng.normal(size=disp.shape), masses=np.asarray(b.masses, dtype=float),
             level_names=tuple(["base"] + [f"floor{j}" for j in range(1, L - 1)] + ["roof"]),
-            source="", meta={"synthetic": True, "seed": seed, "noise": noise, "peak_table_accel": peak,
-                             "truth": truth, "isolator_force_true": fiso}))
+            source="", meta={"synthetic": True, "seed": seed, "noise": noise, "disp_noise_m": disp_noise,
+                             "peak_table_accel": peak, "truth": truth, "isolator_force_true": fiso}))
     return runs
 
 
