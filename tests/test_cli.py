@@ -143,8 +143,8 @@ def _helps(cwd: Path) -> dict[str, subprocess.CompletedProcess]:
     jobs += [(f"help/rubber-{name}", "rubber", [name]) for name in RUBBER_COMMANDS]
     proc = _run([sys.executable, "-c", HELPS, json.dumps(jobs)], cwd)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    return {key: subprocess.CompletedProcess(argv, code, out, err)
-            for (key, _, argv), (code, out, err) in zip(jobs, json.loads(proc.stdout).values())}
+    res = json.loads(proc.stdout)
+    return {key: subprocess.CompletedProcess(argv, *res[key]) for key, _, argv in jobs}
 
 
 @pytest.fixture(scope="module")

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.optimize._numdiff import approx_derivative  # the forward differences least squares takes
 
 from rrfrei.blas import one_blas_thread
 from rrfrei.budget import TimeBudget
@@ -116,6 +117,11 @@ def _simulate(spec: LawSpec, p: np.ndarray, test: ShearTest,
     return int(status), F
 
 
+def _failed(r: np.ndarray, big: float) -> bool:
+    """Whether residuals ``r`` are a fit's failure value (``big`` everywhere: the simulation failed)."""
+    return bool(r.size and r[0] == big and np.all(r == big))
+
+
 DIFF_STEP = 1e-6
 """Relative step of the forward differences of the fits' Jacobian (scipy's ``diff_step``)."""
 
@@ -134,10 +140,8 @@ def one_sided_jacobian(resid, lb: np.ndarray, ub: np.ndarray, big: float):
     along an added effect's parameter whose small value lowers the error: every refit ended at its
     start.  The backward step stays on OpenSees' side of the edge.
     """
-    from scipy.optimize._numdiff import approx_derivative
-
     def failed(r: np.ndarray) -> bool:
-        return bool(r.size and r[0] == big and np.all(r == big))
+        return _failed(r, big)
 
     last: dict = {}
 
@@ -599,7 +603,7 @@ class IsolatorModel(GapModel):
         for i in range(S):
             ri = resid(X[i])
             rss_draw[i] = float(ri @ ri)
-            if ri[0] != big or np.any(ri != big):
+            if not _failed(ri, big):
                 logw[i] = -0.5 * n * math.log(rss_draw[i]) + 0.5 * float(Zn[i] @ Zn[i])
         logw[0] = max(logw[0], -0.5 * n * math.log(rss))
         w = np.exp(logw - logw.max())

@@ -228,11 +228,12 @@ def markdown(df: pd.DataFrame) -> str:
     lines = ["| form | seed | verdict | held-out NRMSE before -> after | shrink | gap shrink [90 % CI] | "
              "closest candidate: why not named |", "|---|---|---|---|---|---|---|"]
     order = {f: k for k, f in enumerate(FORMS)}
-    for r in sorted(df.to_dict("records"), key=lambda r: (order.get(r["effect"], 99), int(r["seed"]))):
+    rows = df.assign(named=_flag(df["named"])).to_dict("records")
+    for r in sorted(rows, key=lambda r: (order.get(r["effect"], 99), int(r["seed"]))):
         if str(r["verdict"]) == "failed":
             lines.append(f"| {r['effect']} | {int(r['seed'])} | failed | - | - | - | {r['error']} |")
             continue
-        named = str(r["named"]).lower() == "true"
+        named = r["named"]
         ci = (f"{pct(r['gap_shrink'])} [{pct(r['gap_shrink_lo'])}, {pct(r['gap_shrink_hi'])}]"
               if named else "-")
         why = "" if named else f"{r['top_candidate']}: {r['top_why']}"
