@@ -32,7 +32,9 @@ class Checkpoint:
         safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in step)
         return self.folder / f"{safe}-{h}.npz"
 
-    def get(self, step: str) -> FitResult | None:
+    def get(self, step: str, model: GapModel | None = None) -> FitResult | None:
+        """The fit saved for ``step``, restored by ``model`` (the model that made it: an effect's
+        refit has the augmented model's parameters; default the checkpoint's own model)."""
         if self.folder is None:
             return None
         path = self._path(step)
@@ -40,7 +42,7 @@ class Checkpoint:
             return None
         try:
             with np.load(path, allow_pickle=False) as z:
-                fit = self.model.restore({k: z[k] for k in z.files})
+                fit = (model or self.model).restore({k: z[k] for k in z.files})
         except (OSError, ValueError, KeyError, TypeError, NotImplementedError):
             return None  # unreadable or from another version: fit again and overwrite
         self.reused.append(step)
@@ -75,7 +77,7 @@ def _fit(model: GapModel, data, budget: TimeBudget, **kw) -> FitResult:
 
 def _fit_or_restore(ck: _Checkpoint, step: str, model: GapModel, data, budget: TimeBudget,
                     **kw) -> FitResult:
-    fit = ck.get(step)
+    fit = ck.get(step, model)
     if fit is None:
         fit = _fit(model, data, budget, **kw)
         ck.put(step, model, fit)
