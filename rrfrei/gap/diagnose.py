@@ -80,6 +80,7 @@ from rrfrei.gap.catalogue import ScreenContext, catalogue, screen_all
 from rrfrei.gap.checkpoint import Checkpoint, _Checkpoint, _fit_or_restore
 from rrfrei.gap.isolator import IsolatorModel
 from rrfrei.gap.model import FitResult, GapModel, velocity
+from rrfrei.gap.parallel import SharedRefits
 from rrfrei.gap.residuals import cycle_levels, segment_table
 from rrfrei.gap.results import GapReport
 from rrfrei.gap.scoring import (
@@ -188,8 +189,8 @@ def _failure(step: str, exc: BaseException) -> str:
 
 def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence[str] | None = None,
              seed: int = 0, combine: bool = True, max_combination: int = 3, progress: bool = False,
-             time_budget: float | TimeBudget | None = None, checkpoint: str | os.PathLike | None = None
-             ) -> GapReport:
+             time_budget: float | TimeBudget | None = None, checkpoint: str | os.PathLike | None = None,
+             workers: int = 1) -> GapReport:
     """Diagnose the gap of ``model`` on ``data`` (see the module docstring).
 
     Parameters
@@ -206,6 +207,8 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
         when it runs out the diagnosis ends with what it has (see :class:`GapReport`).
     checkpoint : folder for finished fits (``None``: none); a rerun with the same folder, data,
         model and seed reuses them.
+    workers : processes for the candidates' refits (:class:`rrfrei.gap.parallel.SharedRefits`;
+        needs ``checkpoint``); the report is the same for any number.
 
     Returns
     -------
@@ -225,7 +228,7 @@ def diagnose(model: GapModel, data, holdout: Sequence = (), *, effects: Sequence
     with one_blas_thread():
         return _diagnose(model, data, holdout, effects=effects, seed=seed, combine=combine,
                          max_combination=max_combination, progress=progress, time_budget=time_budget,
-                         checkpoint=checkpoint)
+                         checkpoint=checkpoint, workers=workers)
 
 
 def _too_few_blocks(sc: _Scorer) -> str:
@@ -247,7 +250,7 @@ def _too_few_blocks(sc: _Scorer) -> str:
 
 
 def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combine, max_combination,
-              progress, time_budget, checkpoint) -> GapReport:
+              progress, time_budget, checkpoint, workers=1) -> GapReport:
     # a model may offer candidates of its own besides the catalogue's (the building's system effects)
     known = list(getattr(model, "candidate_effects", None) or catalogue())
     effects = list(known) if effects is None else list(effects)
@@ -295,6 +298,7 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
         fits: dict[str, FitResult] = {base.name: base}
         starts: list[FitResult] | None = None
         scores: list[EffectScore] = []
+        shared = None
         for e in effects:
             why = model.cannot_judge(e, data)
             if why:
@@ -321,8 +325,13 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                         except ValueError as exc:  # NumericalFailure, LinAlgError are ValueErrors
                             notes.append(f"early-cycle start of the refits skipped: "
                                          f"{_failure('baseline fit on the first half', exc)}")
+                    rest = effects[effects.index(e):]
+                    shared = SharedRefits(ck, model, data, rest, starts, seed, budget, workers)
+                shared.acquire(e)
                 aug = model.augment([e])
                 fit = _fit_or_restore(ck, f"effect-{e}", aug, data, budget, seed=seed, start=starts)
+                if shared.step(e) in shared.helped and shared.step(e) in ck.reused:
+                    ck.reused.remove(shared.step(e))
                 bar.set_postfix_str(f"score +{e}")
                 step = f"scoring of {fit.name}"
                 score = _score(sc, e, fit, base, screens.get(e, float("nan")), bm)
@@ -334,6 +343,10 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                 fits[fit.name] = fit
                 scores.append(score)
             bar.update()
+        if shared is not None:
+            if shared.helped:
+                notes.append(f"{len(shared.helped)} of the candidates' refits ran in a second process")
+            shared.close()
         # the variants once every effect has its primary fit, so that a time budget spent on them
         # never leaves an effect unevaluated
         for i, score in enumerate(scores):

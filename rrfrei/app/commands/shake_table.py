@@ -77,6 +77,9 @@ def register(sub) -> None:
                         "divided by an integer)")
     p.add_argument("--draws", type=positive_int, default=30, metavar="N",
                    help="posterior draws of each building fit, each a simulation of the runs (default 30)")
+    p.add_argument("--workers", type=positive_int, default=None, metavar="N",
+                   help="processes for the candidates' refits (default 2 on a machine with two or more "
+                        "cores, else 1; the result is the same for any number)")
     add_report_options(p, out="shake-table-report", budget=DEFAULT_BUDGET,
                        budget_help=f"wall-clock limit (default {DEFAULT_BUDGET:.0f} s): the diagnosis stops "
                                    "with the effects it has evaluated; 'none': no limit",
@@ -106,7 +109,8 @@ def run(args) -> int:
         res = shake_table_gap(runs, calibrate=args.calibrate, holdout=args.holdout, law=args.law,
                               building=args.building, rate_hz=args.rate, effects=args.effects,
                               draws=args.draws, seed=args.seed, time_budget=args.time_budget,
-                              progress=not args.no_progress, checkpoint=Path(args.out) / "checkpoint")
+                              progress=not args.no_progress, checkpoint=Path(args.out) / "checkpoint",
+                              workers=args.workers)
     for w in caught:
         if issubclass(w.category, ConsistencyWarning):
             print(f"rrfrei shake-table: warning: {w.message}", file=sys.stderr)
