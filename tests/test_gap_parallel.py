@@ -59,3 +59,15 @@ def test_a_second_process_that_dies_loses_no_candidate(truth, monkeypatch, tmp_p
     rep = diagnose(m, cal, [ho], effects=EFFECTS, checkpoint=tmp_path / "dies", workers=2, combine=False)
     assert _summary(rep) == sequential
     assert not any("second process" in str(n) for n in rep.notes)
+
+
+def test_an_isolator_diagnosis_in_two_processes_is_the_sequential_one(tmp_path):
+    from rrfrei.gap import diagnose_gap
+    from rrfrei.gap.validate import FIXED, make_tests
+
+    tests = make_tests("degradation", 0, reduced=True)
+    kw = dict(holdout=tests[1:], fixed=FIXED, effects=["degradation", "asymmetry", "slip"], draws=50,
+              combine=False)
+    one = diagnose_gap(tests[0], "plasticity", checkpoint=tmp_path / "one", workers=1, **kw)
+    two = diagnose_gap(tests[0], "plasticity", checkpoint=tmp_path / "two", workers=2, **kw)
+    assert _summary(two) == _summary(one)

@@ -524,7 +524,7 @@ def _as_test(t, what: str) -> ShearTest:
 def diagnose_gap(test, law: str = "bouc_wen", *, holdout: Sequence = (), effects: Sequence[str] | None = None,
                  fixed: dict | None = None, draws: int = 200, seed: int = 0, combine: bool = True,
                  progress: bool = False, time_budget: float | TimeBudget | None = None,
-                 checkpoint: str | os.PathLike | None = None) -> GapReport:
+                 checkpoint: str | os.PathLike | None = None, workers: int = 1) -> GapReport:
     """Sim-to-real gap diagnosis of ``law`` calibrated on ``test`` (isolator laws).
 
     Parameters
@@ -543,6 +543,7 @@ def diagnose_gap(test, law: str = "bouc_wen", *, holdout: Sequence = (), effects
     time_budget : wall-clock limit [s] (``None``: no limit); when reached, the diagnosis ends
         with the effects evaluated so far and lists the others (see :func:`diagnose`).
     checkpoint : folder where finished fits are saved and reused by a rerun (``None``: none).
+    workers : processes for the candidates' refits (needs ``checkpoint``; :func:`diagnose`).
 
     Returns
     -------
@@ -557,4 +558,5 @@ def diagnose_gap(test, law: str = "bouc_wen", *, holdout: Sequence = (), effects
     cal = _as_test(test, "test")
     hos = [_as_test(h, "holdout") for h in holdout]
     return diagnose(IsolatorModel(spec, fixed=fixed, draws=draws), cal, hos, effects=effects, seed=seed,
-                    combine=combine, progress=progress, time_budget=budget, checkpoint=checkpoint)
+                    combine=combine, progress=progress, time_budget=budget, checkpoint=checkpoint,
+                    workers=workers)

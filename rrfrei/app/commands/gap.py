@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 
 import ground_motions
 from rrfrei.app.commands import HELPS
-from rrfrei.app.commands.args import add_command, add_report_options
+from rrfrei.app.commands.args import add_command, add_report_options, positive_int
 from rrfrei.app.commands.calibrate import add_column_args, load
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.errors import NUMERICAL_ERRORS
@@ -79,6 +80,9 @@ def register(sub) -> None:
     p.add_argument("--every", type=int, default=1, metavar="K",
                    help="keep every K-th sample of every test (a stated decimation for dense records; "
                         "default 1: all)")
+    p.add_argument("--workers", type=positive_int, default=None, metavar="N",
+                   help="processes for the candidates' refits (default 2 on a machine with two or more "
+                        "cores, else 1; the result is the same for any number)")
     p.add_argument("--building-records", type=int, default=11, metavar="N",
                    help="bundled records (first N of the eleven) for the building consequences of the "
                         "named effect at lower/nominal/upper bound (default 11; 0: no building section)")
@@ -146,7 +150,8 @@ def run(args) -> int:
     try:
         rep = diagnose_gap(test, args.law, holdout=holdout, effects=args.effects, seed=args.seed,
                            progress=not args.no_progress, time_budget=budget,
-                           checkpoint=Path(args.out) / "checkpoint")
+                           checkpoint=Path(args.out) / "checkpoint",
+                           workers=args.workers or (2 if (os.cpu_count() or 1) >= 2 else 1))
     except BudgetExceeded as exc:
         print(str(exc), file=sys.stderr)
         return 1
