@@ -71,3 +71,15 @@ def test_an_isolator_diagnosis_in_two_processes_is_the_sequential_one(tmp_path):
     one = diagnose_gap(tests[0], "plasticity", checkpoint=tmp_path / "one", workers=1, **kw)
     two = diagnose_gap(tests[0], "plasticity", checkpoint=tmp_path / "two", workers=2, **kw)
     assert _summary(two) == _summary(one)
+
+
+def test_a_pools_worker_diagnoses_in_one_process(truth, monkeypatch, tmp_path, sequential):
+    """A daemonic process (a multiprocessing pool's worker) may not start children: the diagnosis
+    then runs every refit itself."""
+    import multiprocessing
+
+    m, cal, ho = _case(truth, monkeypatch)
+    monkeypatch.setattr(multiprocessing.current_process(), "daemon", True, raising=False)
+    rep = diagnose(m, cal, [ho], effects=EFFECTS, checkpoint=tmp_path / "pool", workers=2, combine=False)
+    assert _summary(rep) == sequential
+    assert not any("second process" in str(n) for n in rep.notes)

@@ -8,8 +8,8 @@ one process fits it), and saved atomically when done; the diagnosis restores the
 fits from the folder and scores every effect itself, in its own order.  The fits are those of a
 sequential run (same model, data, seed and starts), so the report is too.  A refit the other
 process cannot finish (failure, time budget, a process that died) is fitted by the diagnosis, which
-reports what fails.  Where processes cannot be forked, or without a checkpoint folder, everything
-runs in one process.
+reports what fails.  Where processes cannot be forked (no ``fork``, a daemonic pool worker, no
+process to spare), or without a checkpoint folder, everything runs in one process.
 """
 
 from __future__ import annotations
@@ -48,6 +48,8 @@ class SharedRefits:
         self.helped: set[str] = set()
         if workers < 2 or ck.folder is None or "fork" not in multiprocessing.get_all_start_methods():
             return
+        if multiprocessing.current_process().daemon:  # a pool's worker may not have children
+            return
         if len(self.effects) < 2:
             return
         for e in self.effects:  # claims left by an interrupted run
@@ -56,8 +58,12 @@ class SharedRefits:
             except FileNotFoundError:
                 pass
         ck.folder.mkdir(parents=True, exist_ok=True)
-        self.proc = multiprocessing.get_context("fork").Process(target=self._work, daemon=True)
-        self.proc.start()
+        proc = multiprocessing.get_context("fork").Process(target=self._work, daemon=True)
+        try:
+            proc.start()
+        except OSError:  # no process to spare: everything in this one
+            return
+        self.proc = proc
 
     @staticmethod
     def step(effect: str) -> str:
