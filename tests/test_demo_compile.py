@@ -103,3 +103,37 @@ def test_the_calibration_the_gap_engine_and_a_user_compile_one_bouc_wen_loop():
     # one signature of the loop (it loads from the kernel cache or compiles, either way one); the
     # fast solver inside it is compiled here only with an empty cache, so at most one
     assert loop == 1 and fast <= 1
+
+
+def test_a_record_and_a_fresh_ground_array_share_one_newmark_signature():
+    """A bundled record's acceleration is read-only, a user's (or an interpolated) one writable:
+    the Newmark kernels (unidirectional, its batch, and in plan) are compiled once for both, not
+    a second time (about 10 s of CPU per law and kernel) for the read-only record."""
+    from dataclasses import replace
+
+    import ground_motions
+    import structures
+    from rrfrei.laws import plan as plan_laws
+    from structures.dynamics import history, plan_history
+
+    rec = ground_motions.load("elcentro")
+    assert not rec.accel.flags.writeable  # a record's arrays are read-only
+    short = ground_motions.Record(rec.name, rec.dt, rec.accel[:200], rec.meta)
+    assert not short.accel.flags.writeable
+    b = structures.load_building("three_story")
+    bld = replace(b, isolator=structures.Isolator("linear", {"k": 300.0, "c": 0.0}, b.isolator.count,
+                                                  b.isolator.length_scale))
+    spec = bld.isolator.spec
+    ro = structures.time_history(bld, short)
+    fresh = ground_motions.Record(rec.name, rec.dt, np.array(short.accel), rec.meta)
+    rw = structures.time_history(bld, fresh)
+    np.testing.assert_array_equal(ro.isolator_disp, rw.isolator_disp)
+    P = np.atleast_2d(bld.isolator.packed())
+    structures.time_history_batch(bld, short, P)
+    pair = np.column_stack((short.accel, short.accel))
+    pair.flags.writeable = False
+    structures.plan_time_history(bld, None, None, pair, dt=rec.dt)
+    pspec = plan_laws.get("linear")
+    assert _readonly_args(history.kernel(spec).integrate) == []
+    assert _readonly_args(history.kernel(spec).batch) == []
+    assert _readonly_args(plan_history.kernel(pspec).integrate) == []

@@ -176,7 +176,10 @@ def on_step(what: str, name: str, acc: np.ndarray, rdt: float, dt) -> tuple[str,
     except (TypeError, ValueError):
         h = float("nan")
     if h == rdt:
-        return name, np.ascontiguousarray(acc), rdt
+        acc = np.ascontiguousarray(acc)
+        # writable: Numba compiles a read-only array (a Record's) as a second signature of the
+        # whole Newmark kernel (about 10 s of CPU per law and kernel)
+        return name, acc if acc.flags.writeable else acc.copy(), rdt
     if not (np.isfinite(h) and 0.0 < h <= rdt):
         raise ValueError(
             f"dt = {dt!r} is invalid for {what} {name!r}: expected 0 < dt <= the record step {rdt:g} s "
