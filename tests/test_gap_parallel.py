@@ -7,7 +7,7 @@ import os
 
 import pytest
 
-import rrfrei.gap.parallel as par
+import rrfrei.gap.checkpoint as ckpt
 from rrfrei.gap.diagnose import diagnose
 from structures.shake_table.simulation import BuildingData, Superstructure
 from tests._shake_table_truth import PL, model_of
@@ -48,14 +48,14 @@ def test_two_processes_give_the_sequential_report(truth, monkeypatch, tmp_path, 
 def test_a_second_process_that_dies_loses_no_candidate(truth, monkeypatch, tmp_path, sequential):
     m, cal, ho = _case(truth, monkeypatch)
     parent = os.getpid()
-    real = par._fit
+    real = ckpt._fit
 
     def dies_in_the_child(*a, **k):
         if os.getpid() != parent:
             os._exit(1)
         return real(*a, **k)
 
-    monkeypatch.setattr(par, "_fit", dies_in_the_child)
+    monkeypatch.setattr(ckpt, "_fit", dies_in_the_child)
     rep = diagnose(m, cal, [ho], effects=EFFECTS, checkpoint=tmp_path / "dies", workers=2, combine=False)
     assert _summary(rep) == sequential
     assert not any("second process" in str(n) for n in rep.notes)

@@ -67,6 +67,11 @@ class Checkpoint:
 _Checkpoint = Checkpoint  # the name the engine used before it was public
 
 
+def effect_step(effect: str) -> str:
+    """The checkpoint step of an effect's primary refit from the baseline."""
+    return f"effect-{effect}"
+
+
 def _fit(model: GapModel, data, budget: TimeBudget, **kw) -> FitResult:
     """``model.fit``, passing the budget to models whose optimiser can check it."""
     budget.check()

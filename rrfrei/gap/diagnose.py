@@ -77,7 +77,7 @@ from rrfrei.budget import progress as progress_bar
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap import decision as dec
 from rrfrei.gap.catalogue import ScreenContext, catalogue, screen_all
-from rrfrei.gap.checkpoint import Checkpoint, _Checkpoint, _fit_or_restore
+from rrfrei.gap.checkpoint import Checkpoint, _Checkpoint, _fit_or_restore, effect_step
 from rrfrei.gap.isolator import IsolatorModel
 from rrfrei.gap.model import FitResult, GapModel, velocity
 from rrfrei.gap.parallel import SharedRefits
@@ -140,8 +140,9 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
             break
         step = f"refit of {model.name}+{effect} ({v})"
         try:
-            vfit = _fit_or_restore(ck, f"effect-{effect}:{v}", model.augment([effect], variants={effect: v}),
-                                   data, budget, seed=seed, start=starts)
+            vfit = _fit_or_restore(ck, f"{effect_step(effect)}:{v}",
+                                   model.augment([effect], variants={effect: v}), data, budget, seed=seed,
+                                   start=starts)
             step = f"scoring of {vfit.name} ({v})"
             if not _beats(sc, vfit, fit):
                 continue
@@ -327,11 +328,11 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                                          f"{_failure('baseline fit on the first half', exc)}")
                     rest = effects[effects.index(e):]
                     shared = SharedRefits(ck, model, data, rest, starts, seed, budget, workers)
-                shared.acquire(e)
+                helped = shared.acquire(e)  # made by the other process: not a reuse of an earlier run's
                 aug = model.augment([e])
-                fit = _fit_or_restore(ck, f"effect-{e}", aug, data, budget, seed=seed, start=starts)
-                if shared.step(e) in shared.helped and shared.step(e) in ck.reused:
-                    ck.reused.remove(shared.step(e))
+                fit = _fit_or_restore(ck, effect_step(e), aug, data, budget, seed=seed, start=starts)
+                if helped and effect_step(e) in ck.reused:
+                    ck.reused.remove(effect_step(e))
                 bar.set_postfix_str(f"score +{e}")
                 step = f"scoring of {fit.name}"
                 score = _score(sc, e, fit, base, screens.get(e, float("nan")), bm)

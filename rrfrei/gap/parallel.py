@@ -20,12 +20,18 @@ import time
 from collections.abc import Sequence
 
 from rrfrei.budget import TimeBudget
-from rrfrei.gap.checkpoint import Checkpoint, _fit
+from rrfrei.gap.checkpoint import Checkpoint, _fit_or_restore, effect_step
 
-__all__ = ["SharedRefits"]
+__all__ = ["SharedRefits", "default_workers"]
 
 POLL_S = 0.05
 """Interval at which the diagnosis looks for a fit the other process is making [s]."""
+
+
+def default_workers() -> int:
+    """Processes for the candidates' refits when the user gives none: 2 on a machine with two or
+    more cores, else 1."""
+    return 2 if (os.cpu_count() or 1) >= 2 else 1
 
 
 class SharedRefits:
@@ -52,11 +58,7 @@ class SharedRefits:
             return
         if len(self.effects) < 2:
             return
-        for e in self.effects:  # claims left by an interrupted run
-            try:
-                os.unlink(self._claim_path(self.step(e)))
-            except FileNotFoundError:
-                pass
+        self._unclaim()  # claims left by an interrupted run
         ck.folder.mkdir(parents=True, exist_ok=True)
         proc = multiprocessing.get_context("fork").Process(target=self._work, daemon=True)
         try:
@@ -64,10 +66,6 @@ class SharedRefits:
         except OSError:  # no process to spare: everything in this one
             return
         self.proc = proc
-
-    @staticmethod
-    def step(effect: str) -> str:
-        return f"effect-{effect}"
 
     def _claim_path(self, step: str):
         p = self.ck._path(step)
@@ -81,36 +79,41 @@ class SharedRefits:
         os.close(fd)
         return True
 
+    def _unclaim(self) -> None:
+        for e in self.effects:
+            try:
+                os.unlink(self._claim_path(effect_step(e)))
+            except FileNotFoundError:
+                pass
+
     def _work(self) -> None:
         """The forked process: fit the candidates from the end of the list, each claimed first."""
         for e in reversed(self.effects):
             if self.budget.expired():
                 return
-            step = self.step(e)
-            if self.model.cannot_judge(e, self.data) or not self._claim(step):
-                continue
-            aug = self.model.augment([e])
-            if self.ck.get(step, aug) is not None:
+            if self.model.cannot_judge(e, self.data) or not self._claim(effect_step(e)):
                 continue
             try:
-                fit = _fit(aug, self.data, self.budget, seed=self.seed, start=self.starts)
+                _fit_or_restore(self.ck, effect_step(e), self.model.augment([e]), self.data, self.budget,
+                                seed=self.seed, start=self.starts)
             except BaseException:  # noqa: BLE001 - the diagnosis refits it and reports the failure
                 continue
-            self.ck.put(step, aug, fit)
 
-    def acquire(self, effect: str) -> None:
+    def acquire(self, effect: str) -> bool:
         """Before the diagnosis fits ``effect``: claim it, or wait until the other process has saved
-        its fit (or has ended: the diagnosis then fits it)."""
+        its fit (or has ended: the diagnosis then fits it).  Whether the other process made it."""
         if self.proc is None:
-            return
-        step = self.step(effect)
+            return False
+        step = effect_step(effect)
         if self._claim(step):
-            return
+            return False
         path = self.ck._path(step)
         while self.proc.is_alive() and not path.is_file():
             time.sleep(POLL_S)
         if path.is_file():
             self.helped.add(step)
+            return True
+        return False
 
     def close(self) -> None:
         """End the other process (its remaining claims are fitted by nobody: the loop is done)."""
@@ -119,8 +122,4 @@ class SharedRefits:
         if self.proc.is_alive():
             self.proc.terminate()
         self.proc.join()
-        for e in self.effects:
-            try:
-                os.unlink(self._claim_path(self.step(e)))
-            except FileNotFoundError:
-                pass
+        self._unclaim()

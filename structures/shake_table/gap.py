@@ -58,6 +58,7 @@ from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
 from rrfrei.gap.catalogue import catalogue
 from rrfrei.gap.diagnose import Checkpoint, GapReport, diagnose, loco
 from rrfrei.gap.model import RETRY_SUBSTEPS, IsolatorModel, simulate_retry
+from rrfrei.gap.parallel import default_workers
 from rrfrei.io import ShearTest
 from rrfrei.jsonable import number as _num
 from rrfrei.notes import Note
@@ -435,7 +436,7 @@ def shake_table_gap(
     t_start = _time.perf_counter()
     c_start = _cpu()
     if workers is None:
-        workers = 2 if (os.cpu_count() or 1) >= 2 else 1
+        workers = default_workers()
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise ValueError(f"workers = {workers!r} is invalid: expected an integer >= 1")
     seconds: dict[str, float] = {}

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -15,6 +14,7 @@ from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.errors import NUMERICAL_ERRORS
 from rrfrei.gap import diagnose_gap
 from rrfrei.gap.catalogue import catalogue
+from rrfrei.gap.parallel import default_workers
 from rrfrei.gap.report import design_summary, write_report
 from rrfrei.io import ShearTest
 from rrfrei.laws import get as get_law
@@ -151,7 +151,7 @@ def run(args) -> int:
         rep = diagnose_gap(test, args.law, holdout=holdout, effects=args.effects, seed=args.seed,
                            progress=not args.no_progress, time_budget=budget,
                            checkpoint=Path(args.out) / "checkpoint",
-                           workers=args.workers or (2 if (os.cpu_count() or 1) >= 2 else 1))
+                           workers=args.workers or default_workers())
     except BudgetExceeded as exc:
         print(str(exc), file=sys.stderr)
         return 1
