@@ -75,6 +75,7 @@ from rrfrei.blas import one_blas_thread
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.budget import progress as progress_bar
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
+from rrfrei.forkmap import sharing
 from rrfrei.gap import decision as dec
 from rrfrei.gap.catalogue import ScreenContext, catalogue, screen_all
 from rrfrei.gap.checkpoint import Checkpoint, _Checkpoint, _fit_or_restore, effect_step
@@ -269,7 +270,9 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
     if few and effects:
         notes.append(Note(few, "critical"))
     bar = progress_bar(1 + len(effects), f"gap {model.name}", enabled=progress, unit="step")
-    with bar:
+    # one fit at a time may spread its evaluations over the processes; while a second process
+    # fits candidates of its own, each fit keeps to one (rrfrei.forkmap)
+    with bar, sharing(workers):
         bar.set_postfix_str("baseline")
         try:
             base = _fit_or_restore(ck, "baseline", model, data, budget, seed=seed)
@@ -330,7 +333,8 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                     shared = SharedRefits(ck, model, data, rest, starts, seed, budget, workers)
                 helped = shared.acquire(e)  # made by the other process: not a reuse of an earlier run's
                 aug = model.augment([e])
-                fit = _fit_or_restore(ck, effect_step(e), aug, data, budget, seed=seed, start=starts)
+                with sharing(1 if shared.proc is not None else workers):
+                    fit = _fit_or_restore(ck, effect_step(e), aug, data, budget, seed=seed, start=starts)
                 if helped and effect_step(e) in ck.reused:
                     ck.reused.remove(effect_step(e))
                 bar.set_postfix_str(f"score +{e}")

@@ -20,6 +20,7 @@ import time
 from collections.abc import Sequence
 
 from rrfrei.budget import TimeBudget
+from rrfrei.forkmap import sharing
 from rrfrei.gap.checkpoint import Checkpoint, _fit_or_restore, effect_step
 
 __all__ = ["SharedRefits", "default_workers"]
@@ -87,7 +88,12 @@ class SharedRefits:
                 pass
 
     def _work(self) -> None:
-        """The forked process: fit the candidates from the end of the list, each claimed first."""
+        """The forked process: fit the candidates from the end of the list, each claimed first, each
+        fit in this process alone (the diagnosis's fits keep to theirs meanwhile)."""
+        with sharing(1):
+            self._fit_from_the_end()
+
+    def _fit_from_the_end(self) -> None:
         for e in reversed(self.effects):
             if self.budget.expired():
                 return

@@ -35,6 +35,7 @@ from scipy.optimize import least_squares
 from rrfrei.blas import one_blas_thread
 from rrfrei.budget import TimeBudget
 from rrfrei.errors import NumericalFailure
+from rrfrei.forkmap import ForkMap
 from rrfrei.gap.model import FitResult
 from structures.shake_table.building_fit import BuildingFit, ar1, temper
 from structures.shake_table.simulation import FIT_CHANNELS, BuildingData
@@ -80,161 +81,181 @@ def fit_output_error(model, data: BuildingData, *, seed: int = 0, start=None,
 
     kept: dict[bytes, dict] = {}
 
-    def model_out(x, keep: bool = False):
-        counter["n"] += 1
+    def simulate_point(x):
+        """One simulation at scaled parameters ``x``: (status, outputs, robust-solve tally)."""
+        tally: dict = {}
+        st, out = model.simulate(x * s_vec, data, tally=tally)
+        return st, out, tally
+
+    def model_outs(X, keep: bool = False) -> list:
+        """The stacked outputs at the scaled points ``X`` (None where a simulation fails), the
+        batch spread over the fit's processes (:class:`rrfrei.forkmap.ForkMap`)."""
         if budget is not None:
             budget.check()
-        st, out = model.simulate(x * s_vec, data, tally=counter)
-        if st != 0:
-            counter["failed"] += 1
-            return None
-        if keep:
-            kept[np.asarray(x * s_vec, dtype=float).tobytes()] = out
-        return model.stack(out, data)
+        outs = []
+        for x, (st, out, tally) in zip(X, fmap.map(X)):
+            counter["n"] += 1
+            for key, val in tally.items():
+                counter[key] = counter.get(key, 0) + val
+            if st != 0:
+                counter["failed"] += 1
+                outs.append(None)
+                continue
+            if keep:
+                kept[np.asarray(x * s_vec, dtype=float).tobytes()] = out
+            outs.append(model.stack(out, data))
+        return outs
 
-    def resid(x):
-        f = model_out(x)
+    def post(f):
         if f is None:
             return np.full(y.size, big)
         return (f - y) * w[ch_index]
 
-    starts = model.starts(start)
-    xs = []
-    for s0 in starts:
-        x0 = np.array([s0.get(n, lay.law_vector(s0)[lay.idx[n]] if n in lay.idx else 0.0)
-                       for n in lay.names])
-        x0 = np.clip(x0 / s_vec, lb + 1e-9 * (ub - lb), ub - 1e-9 * (ub - lb))
-        xs.append(x0)
+    def resid(x):
+        return post(model_outs([x])[0])
 
-    def search(x0, nfev):
-        with one_blas_thread():  # trf's SVD of a thin Jacobian: one thread is far faster on shared cores
-            return least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0, max_nfev=nfev,
-                                 diff_step=1e-3)
+    def resids(X) -> list:
+        return [post(f) for f in model_outs(list(X))]
 
-    # global start: CMA-ES over every parameter (a fit from the loop fit) or over the parameters
-    # the given fits do not hold (an added effect's, with the superstructure's), from the first
-    # start; its best point joins the starts of the local search
-    fits_given = [] if start is None else [start] if isinstance(start, FitResult) else list(start)
-    given = {n for n in lay.names if fits_given and all(n in f_.params for f_ in fits_given)}
-    free_g = np.array([n not in given or n in ("k_scale", "zeta") for n in lay.names])
-    evals = model.global_evals if start is None else model.refit_global_evals
-    if evals > 0 and free_g.any():
-        xg = cma_start(resid, xs[0], lb, ub, free_g, evals, seed)
-        if xg is not None:
-            xs.append(xg)
-
-    screened = []
-    for x0 in xs:
-        try:
-            screened.append(search(x0, SCREEN_NFEV if start is None else REFIT_SCREEN_NFEV))
-        except ValueError:
-            continue
-    if not screened:
-        raise NumericalFailure(f"output-error fit of {model.name!r} on {data.name}: every start failed")
-    best = min(screened, key=lambda r: r.cost)
-    # reweight: each channel by its residual sd (the MLE), then continue; a refit from a given
-    # start (an effect added to a fitted building) continues once, shorter
-    for _ in range(2 if start is None else 1):
-        r = best.fun / w[ch_index]
-        sig = np.array([math.sqrt(float(np.mean(r[ch_index == j] ** 2))) or 1.0
-                        for j in range(len(FIT_CHANNELS))])
-        w = 1.0 / sig
-        try:
-            best = search(best.x, model.max_nfev if start is None else REFIT_NFEV)
-        except ValueError:
-            break
-    x_opt = best.x * s_vec
-    st, out = model.simulate(x_opt, data)
-    if st != 0:
-        raise NumericalFailure(f"output-error fit of {model.name!r} on {data.name}: the optimum's "
-                               f"simulation fails (status {st})")
-    f = model.stack(out, data)
-    res = f - y
-    sigma_c, rho_c = {}, {}
-    for j, c in enumerate(FIT_CHANNELS):
-        rc = res[ch_index == j]
-        sigma_c[c] = float(np.sqrt(np.mean(rc**2)))
-        rho_c[c] = ar1(np.concatenate([(out[o][c] - data.measured(o)[c]) for o in data.observed]))
-    # the story-1 shear: not fitted; its residual sd at the optimum gives its band
-    rb = np.concatenate([out[o]["base_shear"] - data.measured(o)["base_shear"] for o in data.observed])
-    sigma_c["base_shear"] = float(np.sqrt(np.mean(rb**2))) / model.scales["base_shear"]
-    # Laplace in scaled coordinates with tempered weights, checked by importance sampling
-    tw = np.sqrt(np.array([temper(rho_c[c]) for c in FIT_CHANNELS]))
-    sg = np.array([sigma_c[c] for c in FIT_CHANNELS])
-    J = best.jac / w[ch_index][:, None] * (tw / sg)[ch_index][:, None]
-    k = J.shape[1]
-    A = J.T @ J + np.eye(k)
+    fmap = ForkMap(simulate_point)
     try:
-        cov = np.linalg.inv(A)
-    except np.linalg.LinAlgError:
-        wv, V = np.linalg.eigh(0.5 * (A + A.T))
-        cov = (V / np.maximum(wv, 1.0)) @ V.T
-    note = ""
-    S = model.draws
-    rng = np.random.default_rng([seed, 31])
-    Z = rng.normal(size=(S, k))
-    try:
-        L = np.linalg.cholesky(cov)
-    except np.linalg.LinAlgError:
-        wv, V = np.linalg.eigh(cov)
-        L = V * np.sqrt(np.clip(wv, 0, None))
-    Xs = np.clip(best.x[None, :] + Z @ L.T, lb, ub)
-    Xs[0] = best.x
-    tw_vec = (tw**2)[ch_index]
-    sg_vec = sg[ch_index]
+        starts = model.starts(start)
+        xs = []
+        for s0 in starts:
+            x0 = np.array([s0.get(n, lay.law_vector(s0)[lay.idx[n]] if n in lay.idx else 0.0)
+                           for n in lay.names])
+            x0 = np.clip(x0 / s_vec, lb + 1e-9 * (ub - lb), ub - 1e-9 * (ub - lb))
+            xs.append(x0)
 
-    def tempered_ll(fv):
-        rr = (fv - y) / sg_vec
-        return float(-0.5 * np.sum(tw_vec * rr**2))
+        def search(x0, nfev):
+            with one_blas_thread():  # trf's SVD of a thin Jacobian: one thread is far faster on shared cores
+                return least_squares(resid, x0, bounds=(lb, ub), method="trf", x_scale=1.0, max_nfev=nfev,
+                                     diff_step=1e-3, workers=lambda _fun, X: resids(X))
 
-    ll0 = tempered_ll(f)
-    logw = np.full(S, -np.inf)
-    for i in range(S):
-        if i == 0:
-            logw[i] = 0.0
-            continue
-        fi = model_out(Xs[i], keep=True)
-        if fi is None:
-            continue
-        # target: tempered likelihood times the unit ridge prior around the optimum (the prior of
-        # the Laplace precision), over the Gaussian proposal
-        dx = Xs[i] - best.x
-        logw[i] = tempered_ll(fi) - ll0 - 0.5 * float(dx @ dx) + 0.5 * float(Z[i] @ Z[i])
-    ok = np.isfinite(logw)
-    wts = np.exp(logw - logw[ok].max())
-    wts[~ok] = 0.0
-    wts /= wts.sum()
-    ess = float(1.0 / np.sum(wts**2))
-    u0 = np.random.default_rng([seed, 998]).uniform()
-    pick = np.minimum(np.searchsorted(np.cumsum(wts), (u0 + np.arange(S)) / S), S - 1)
-    X = Xs[pick] * s_vec[None, :]
-    if ess < 5.0:
-        note = (f"importance check of the Laplace posterior of {model.name} degenerate (effective "
-                f"sample size {ess:.1f} of {S}): the band holds little parameter uncertainty")
-    if counter["failed"]:
-        msg = (f"{counter['failed']} of {counter['n']} simulations of {model.name} failed during the fit "
-               "(counted as bad points)")
-        note = f"{note}; {msg}" if note else msg
-    if counter.get("robust_sims"):
-        msg = (f"the robust local solve replaced OpenSees' failed iteration (a deviation) at "
-               f"{counter['robust_steps']} time steps of {counter['robust_sims']} of {counter['n']} "
-               f"simulations of {model.name} during the fit")
-        note = f"{note}; {msg}" if note else msg
-    kept[np.asarray(best.x * s_vec, dtype=float).tobytes()] = out
-    fit = BuildingFit(model=model, x_opt=x_opt, X=X, sigma_c=sigma_c, rho_c=rho_c, ess=ess,
-                      nfev=counter["n"], failed=counter["failed"], seed=seed, note=note,
-                      robust_sims=int(counter.get("robust_sims", 0)))
-    fit._cache[("sims", id(data))] = (data, kept)  # the draws' simulations on the fitted data
-    return fit
+        # global start: CMA-ES over every parameter (a fit from the loop fit) or over the parameters
+        # the given fits do not hold (an added effect's, with the superstructure's), from the first
+        # start; its best point joins the starts of the local search
+        fits_given = [] if start is None else [start] if isinstance(start, FitResult) else list(start)
+        given = {n for n in lay.names if fits_given and all(n in f_.params for f_ in fits_given)}
+        free_g = np.array([n not in given or n in ("k_scale", "zeta") for n in lay.names])
+        evals = model.global_evals if start is None else model.refit_global_evals
+        if evals > 0 and free_g.any():
+            xg = cma_start(resids, xs[0], lb, ub, free_g, evals, seed)
+            if xg is not None:
+                xs.append(xg)
+
+        screened = []
+        for x0 in xs:
+            try:
+                screened.append(search(x0, SCREEN_NFEV if start is None else REFIT_SCREEN_NFEV))
+            except ValueError:
+                continue
+        if not screened:
+            raise NumericalFailure(f"output-error fit of {model.name!r} on {data.name}: every start failed")
+        best = min(screened, key=lambda r: r.cost)
+        # reweight: each channel by its residual sd (the MLE), then continue; a refit from a given
+        # start (an effect added to a fitted building) continues once, shorter
+        for _ in range(2 if start is None else 1):
+            r = best.fun / w[ch_index]
+            sig = np.array([math.sqrt(float(np.mean(r[ch_index == j] ** 2))) or 1.0
+                            for j in range(len(FIT_CHANNELS))])
+            w = 1.0 / sig
+            try:
+                best = search(best.x, model.max_nfev if start is None else REFIT_NFEV)
+            except ValueError:
+                break
+        x_opt = best.x * s_vec
+        st, out = model.simulate(x_opt, data)
+        if st != 0:
+            raise NumericalFailure(f"output-error fit of {model.name!r} on {data.name}: the optimum's "
+                                   f"simulation fails (status {st})")
+        f = model.stack(out, data)
+        res = f - y
+        sigma_c, rho_c = {}, {}
+        for j, c in enumerate(FIT_CHANNELS):
+            rc = res[ch_index == j]
+            sigma_c[c] = float(np.sqrt(np.mean(rc**2)))
+            rho_c[c] = ar1(np.concatenate([(out[o][c] - data.measured(o)[c]) for o in data.observed]))
+        # the story-1 shear: not fitted; its residual sd at the optimum gives its band
+        rb = np.concatenate([out[o]["base_shear"] - data.measured(o)["base_shear"] for o in data.observed])
+        sigma_c["base_shear"] = float(np.sqrt(np.mean(rb**2))) / model.scales["base_shear"]
+        # Laplace in scaled coordinates with tempered weights, checked by importance sampling
+        tw = np.sqrt(np.array([temper(rho_c[c]) for c in FIT_CHANNELS]))
+        sg = np.array([sigma_c[c] for c in FIT_CHANNELS])
+        J = best.jac / w[ch_index][:, None] * (tw / sg)[ch_index][:, None]
+        k = J.shape[1]
+        A = J.T @ J + np.eye(k)
+        try:
+            cov = np.linalg.inv(A)
+        except np.linalg.LinAlgError:
+            wv, V = np.linalg.eigh(0.5 * (A + A.T))
+            cov = (V / np.maximum(wv, 1.0)) @ V.T
+        note = ""
+        S = model.draws
+        rng = np.random.default_rng([seed, 31])
+        Z = rng.normal(size=(S, k))
+        try:
+            L = np.linalg.cholesky(cov)
+        except np.linalg.LinAlgError:
+            wv, V = np.linalg.eigh(cov)
+            L = V * np.sqrt(np.clip(wv, 0, None))
+        Xs = np.clip(best.x[None, :] + Z @ L.T, lb, ub)
+        Xs[0] = best.x
+        tw_vec = (tw**2)[ch_index]
+        sg_vec = sg[ch_index]
+
+        def tempered_ll(fv):
+            rr = (fv - y) / sg_vec
+            return float(-0.5 * np.sum(tw_vec * rr**2))
+
+        ll0 = tempered_ll(f)
+        logw = np.full(S, -np.inf)
+        logw[0] = 0.0
+        for i, fi in enumerate(model_outs(list(Xs[1:]), keep=True), start=1):
+            if fi is None:
+                continue
+            # target: tempered likelihood times the unit ridge prior around the optimum (the prior of
+            # the Laplace precision), over the Gaussian proposal
+            dx = Xs[i] - best.x
+            logw[i] = tempered_ll(fi) - ll0 - 0.5 * float(dx @ dx) + 0.5 * float(Z[i] @ Z[i])
+        ok = np.isfinite(logw)
+        wts = np.exp(logw - logw[ok].max())
+        wts[~ok] = 0.0
+        wts /= wts.sum()
+        ess = float(1.0 / np.sum(wts**2))
+        u0 = np.random.default_rng([seed, 998]).uniform()
+        pick = np.minimum(np.searchsorted(np.cumsum(wts), (u0 + np.arange(S)) / S), S - 1)
+        X = Xs[pick] * s_vec[None, :]
+        if ess < 5.0:
+            note = (f"importance check of the Laplace posterior of {model.name} degenerate (effective "
+                    f"sample size {ess:.1f} of {S}): the band holds little parameter uncertainty")
+        if counter["failed"]:
+            msg = (f"{counter['failed']} of {counter['n']} simulations of {model.name} failed during the fit "
+                   "(counted as bad points)")
+            note = f"{note}; {msg}" if note else msg
+        if counter.get("robust_sims"):
+            msg = (f"the robust local solve replaced OpenSees' failed iteration (a deviation) at "
+                   f"{counter['robust_steps']} time steps of {counter['robust_sims']} of {counter['n']} "
+                   f"simulations of {model.name} during the fit")
+            note = f"{note}; {msg}" if note else msg
+        kept[np.asarray(best.x * s_vec, dtype=float).tobytes()] = out
+        fit = BuildingFit(model=model, x_opt=x_opt, X=X, sigma_c=sigma_c, rho_c=rho_c, ess=ess,
+                          nfev=counter["n"], failed=counter["failed"], seed=seed, note=note,
+                          robust_sims=int(counter.get("robust_sims", 0)))
+        fit._cache[("sims", id(data))] = (data, kept)  # the draws' simulations on the fitted data
+        return fit
+    finally:
+        fmap.close()
 
 
-def cma_start(resid, x0: np.ndarray, lb: np.ndarray, ub: np.ndarray, free: np.ndarray, evals: int,
-               seed: int) -> np.ndarray | None:
+def cma_start(resids, x0: np.ndarray, lb: np.ndarray, ub: np.ndarray, free: np.ndarray, evals: int,
+              seed: int) -> np.ndarray | None:
     """Best point of a CMA-ES search (Hansen 2016, "The CMA evolution strategy: a tutorial",
-    arXiv:1604.00772; the ``cma`` package) of the sum of squares of ``resid`` over the coordinates
-    ``free`` (scaled, the others held at ``x0``), in the box ``x0 +- GLOBAL_BOX`` within the
-    bounds, mapped onto the unit cube; ``evals`` evaluations at most.  None when no evaluated
-    point beats ``x0``."""
+    arXiv:1604.00772; the ``cma`` package) of the sum of squares of the residuals over the
+    coordinates ``free`` (scaled, the others held at ``x0``), in the box ``x0 +- GLOBAL_BOX`` within
+    the bounds, mapped onto the unit cube; ``evals`` evaluations at most.  ``resids(X)``: the
+    residual vectors at the points ``X`` (a generation at a time, so they can be evaluated in
+    parallel).  None when no evaluated point beats ``x0``."""
     import cma
 
     lo = np.maximum(lb, x0 - GLOBAL_BOX)[free]
@@ -247,23 +268,29 @@ def cma_start(resid, x0: np.ndarray, lb: np.ndarray, ub: np.ndarray, free: np.nd
         x[free] = lo + np.clip(np.asarray(u, float), 0.0, 1.0) * span
         return x
 
-    def f(u):
-        r = resid(full(u))
-        return float(r @ r)
+    def fs(U):
+        return [float(r @ r) for r in resids([full(u) for u in U])]
 
-    f0 = f(u0)
+    f0 = fs([u0])[0]
     opts = {"bounds": [0.0, 1.0], "seed": 1 + int(seed) % 100_000, "maxfevals": int(evals),
             "verbose": -9, "tolfun": 1e-6 * max(f0, 1e-12)}
     if u0.size == 1:  # cma needs two coordinates: a dummy one
         opts["bounds"] = [[0.0, 0.0], [1.0, 1.0]]
         es = cma.CMAEvolutionStrategy([u0[0], 0.5], CMA_SIGMA, opts)
-        es.optimize(lambda u: f(u[:1]))
+        _ask_tell(es, lambda U: fs([u[:1] for u in U]))
         ub_ = np.asarray(es.result.xbest[:1]) if es.result.xbest is not None else None
     else:
         es = cma.CMAEvolutionStrategy(u0, CMA_SIGMA, opts)
-        es.optimize(f)
+        _ask_tell(es, fs)
         ub_ = es.result.xbest
     if ub_ is None or not es.result.fbest < f0:
         return None
     return full(ub_)
 
+
+def _ask_tell(es, fs) -> None:
+    """The loop of ``es.optimize`` (ask a generation, evaluate it, tell), the generation evaluated
+    as one batch by ``fs``."""
+    while not es.stop():
+        U = es.ask()
+        es.tell(U, fs(U))
