@@ -106,11 +106,15 @@ def test_verdict_is_the_one_answer_and_every_run_has_its_channel_metrics(cli_jso
     for chans in data["runs"].values():
         assert set(chans) == set(CHANNELS)
         for m in chans.values():
-            assert set(m) == {"nrmse", "peak_error", "coverage", "band_width"}
+            assert set(m) == {"nrmse", "peak_error", "coverage", "coverage_low", "coverage_high",
+                              "band_width"}
             assert m["nrmse"] >= 0 and 0 <= m["coverage"] <= 1 and m["band_width"] > 0
+            assert 0 <= m["coverage_low"] <= m["coverage_high"] <= 1
     # the pooled held-out numbers are those of the one held-out run
     for c in CHANNELS:
         assert data["coverage"][c] == pytest.approx(data["runs"]["ICA100w"][c]["coverage"])
+        assert data["coverage_interval"][c] == pytest.approx([data["runs"]["ICA100w"][c]["coverage_low"],
+                                                              data["runs"]["ICA100w"][c]["coverage_high"]])
         assert data["gap_after"]["holdout"][c] == pytest.approx(data["runs"]["ICA100w"][c]["nrmse"])
     # the building is calibrated by output error; the loop fit is the comparison row
     assert data["calibration"]["method"].startswith("output error")

@@ -128,8 +128,10 @@ class ShakeTableGap:
     :attr:`rrfrei.gap.GapReport.verdict`); ``diagnosis`` is the same string (kept for old callers).
     ``gap_before`` / ``gap_after``: {"calibration": {channel: NRMSE}, "holdout": {...}} of the
     building fitted by output error without effects and with the named ones; ``runs``: run ->
-    channel -> {nrmse, peak_error, coverage, band_width} of the final model on every calibration
-    and held-out run; ``coverage`` / ``band_width``: the same pooled over the held-out runs;
+    channel -> {nrmse, peak_error, coverage, coverage_low, coverage_high, band_width} of the final
+    model on every calibration and held-out run (``coverage_low`` / ``coverage_high``: the 90 %
+    block-bootstrap interval of the coverage, :func:`structures.shake_table.sequence.coverage_interval`);
+    ``coverage`` / ``band_width`` / ``coverage_interval``: the same pooled over the held-out runs;
     ``coverage_parameter_band``: coverage of the parameter band alone; ``extrapolation``:
     held-out run -> its peak |d_0| over the calibration runs' peak; ``building_check``: held-out
     NRMSE per channel of the optimum of the baseline and of every candidate (one analysis each);
@@ -166,6 +168,7 @@ class ShakeTableGap:
     seconds: dict
     runs: dict = field(default_factory=dict)
     band_width: dict = field(default_factory=dict)
+    coverage_interval: dict = field(default_factory=dict)
     loop_fit: dict = field(default_factory=dict)
     final_fit: BuildingFit | None = field(default=None, repr=False)
     base_fit: BuildingFit | None = field(default=None, repr=False)
@@ -227,6 +230,7 @@ class ShakeTableGap:
             "gap_after": _nums(self.gap_after),
             "coverage": {k: _num(v) for k, v in self.coverage.items()},
             "band_width": {k: _num(v) for k, v in self.band_width.items()},
+            "coverage_interval": {k: [_num(a), _num(b)] for k, (a, b) in self.coverage_interval.items()},
             "coverage_parameter_band": {k: _num(v) for k, v in self.coverage_parameter_band.items()},
             "shrink_holdout": {k: _num(v) for k, v in self.shrink().items()},
             "runs": {r: {c: {k: _num(v) for k, v in m.items()} for c, m in chans.items()}
@@ -584,6 +588,7 @@ def shake_table_gap(
     held = pooled(after, ho_seq) if ho_seq else {}
     cov = {c: v["coverage"] for c, v in held.items()}
     bw = {c: v["band_width"] for c, v in held.items()}
+    cov_ci = {c: (v["coverage_low"], v["coverage_high"]) for c, v in held.items()}
     cov_b = {c: v["coverage"] for c, v in pooled(before, ho_seq).items()} if ho_seq else {}
     cov_p = {}
     if ho_seq:
@@ -623,5 +628,6 @@ def shake_table_gap(
         coverage_parameter_band=cov_p, coverage_before=cov_b, error_sd=err_sd, extrapolation=extrapolation,
         calibrated_peak=cal_peak, where=where, building_check=building_check, notes=tuple(notes),
         elapsed=_time.perf_counter() - t_start, seconds=seconds, runs=runs_metrics, band_width=bw,
+        coverage_interval=cov_ci,
         loop_fit=loop_row, final_fit=final_fit, base_fit=base_fit,
         cpu_seconds=_cpu() - c_start)

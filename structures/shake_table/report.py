@@ -112,6 +112,13 @@ def gap_table(res: ShakeTableGap) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _interval(ci) -> str:
+    """`(90 % interval a-b %) ` of a coverage, or nothing when it is unknown."""
+    if not ci or not all(math.isfinite(v) for v in ci):
+        return ""
+    return f"(90 % interval {100 * ci[0]:.0f}-{100 * ci[1]:.0f} %, 10 s blocks) "
+
+
 def _md(df: pd.DataFrame, pct: tuple[str, ...] = ()) -> str:
     def cell(col, v):
         if isinstance(v, (float, np.floating)):
@@ -154,7 +161,9 @@ def reading(res: ShakeTableGap) -> str:
                      f"{100 * ha['isolator_disp']:.0f} % with the final model {res.final_law}; peak error "
                      + ", ".join(f"{h} {100 * v:+.0f} %" for h, v in pk.items())
                      + "; the predictive 95 % band covers "
-                     f"{100 * res.coverage['isolator_disp']:.0f} % of the "
+                     f"{100 * res.coverage['isolator_disp']:.0f} % "
+                     + _interval(res.coverage_interval.get("isolator_disp"))
+                     + "of the "
                      f"held-out isolator displacements with a mean width of "
                      f"{res.band_width['isolator_disp']:.2f} x their RMS.")
         lf = res.loop_fit.get("holdout") or {}
@@ -184,7 +193,8 @@ def write_report(res: ShakeTableGap, out: str | Path) -> Path:
              "Predictive band: posterior draws of the building's parameters plus the residual model (per "
              "channel, sd of the calibration residuals); parameter band: the draws only.", "",
              "## Every run, final model", "",
-             _md(runs_table(res), pct=("nrmse", "peak_error", "coverage")), ""]
+             _md(runs_table(res), pct=("nrmse", "peak_error", "coverage", "coverage_low", "coverage_high")),
+             ""]
     if len(res.law_scores):
         parts += ["## Law choice (leave-one-cycle-out elpd on the calibration isolation tests)", "",
                   _md(res.law_scores), ""]
