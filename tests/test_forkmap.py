@@ -106,3 +106,23 @@ def test_a_building_fit_in_two_processes_is_the_fit_in_one(truth, monkeypatch):
     np.testing.assert_array_equal(two.X, one.X)
     assert (two.ess, two.nfev, two.failed, two.sigma_c, two.rho_c) == (one.ess, one.nfev, one.failed,
                                                                         one.sigma_c, one.rho_c)
+
+
+def test_the_laws_fitted_in_two_processes_are_those_fitted_in_one(truth, tmp_path):
+    """``--law auto`` fits its laws to the isolation loops in forked processes: the same fits, the
+    same leave-one-cycle-out ranking as one process."""
+    from rrfrei.budget import TimeBudget
+    from structures.shake_table.gap import _pick_law
+    from structures.shake_table.simulation import calibration_test
+
+    _, runs = truth
+    cal = calibration_test(runs[:1], 10.0)
+    laws = ("plasticity", "bouc_wen")
+    budget = TimeBudget.of(None, "test")
+    picks = [_pick_law(cal, laws, 10, 0, budget, [], tmp_path / str(w), w) for w in (1, 2)]
+    (law1, df1, fits1), (law2, df2, fits2) = picks
+    assert law1 == law2
+    np.testing.assert_array_equal(df1["loco_elpd"].to_numpy(), df2["loco_elpd"].to_numpy())
+    for law in laws:
+        np.testing.assert_array_equal(fits1[law].p_opt, fits2[law].p_opt)
+        np.testing.assert_array_equal(fits1[law].P, fits2[law].P)

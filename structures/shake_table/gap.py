@@ -55,6 +55,7 @@ import pandas as pd
 from rrfrei.budget import BudgetExceeded, TimeBudget
 from rrfrei.calibration.checks import nrmse
 from rrfrei.errors import NUMERICAL_ERRORS, NumericalFailure
+from rrfrei.forkmap import ForkMap
 from rrfrei.gap.catalogue import catalogue
 from rrfrei.gap.diagnose import Checkpoint, GapReport, diagnose, loco
 from rrfrei.gap.model import RETRY_SUBSTEPS, IsolatorModel, simulate_retry
@@ -309,15 +310,31 @@ def _names(items) -> list[str]:
 
 
 def _pick_law(cal: ShearTest, laws: Sequence[str], draws: int, seed: int, budget: TimeBudget,
-              notes: list[str], checkpoint) -> tuple[str, pd.DataFrame, dict]:
+              notes: list[str], checkpoint, workers: int = 1) -> tuple[str, pd.DataFrame, dict]:
     """Fit each law in ``laws`` to the isolation loops and rank by leave-one-cycle-out elpd (PSIS)
     on ``cal``; every fit is saved in the ``checkpoint`` folder and reused as the loop fit that
-    starts the output-error calibration."""
+    starts the output-error calibration.  ``workers`` > 1: the fits run in that many forked
+    processes first (:class:`rrfrei.forkmap.ForkMap`), the same fits."""
     model = IsolatorModel(laws[0], draws=draws)
     groups = model.groups(cal)
+    if workers > 1 and checkpoint is not None:
+        # the laws' fits are independent: forked processes fit them into the checkpoint folder,
+        # and the loop below restores them (a fit a process could not make is fitted there again)
+        def prefit(law: str) -> float:
+            t0 = _time.perf_counter()
+            try:
+                _loop_fit(law, cal, draws, seed, budget, checkpoint)
+            except BaseException:  # noqa: BLE001 - fitted again below, where the failure is reported
+                pass
+            return _time.perf_counter() - t0
+
+        with ForkMap(prefit, workers=workers) as fm:
+            fit_s = dict(zip(laws, fm.map(list(laws))))
+    else:
+        fit_s = {}
     rows, fits = [], {}
     for law in laws:
-        t0 = _time.perf_counter()
+        t0 = _time.perf_counter() - fit_s.get(law, 0.0)  # "seconds": the law's fit wherever it ran
         try:
             fit = _loop_fit(law, cal, draws, seed, budget, checkpoint)
             elpd = float(loco(fit.loglik(cal), groups).sum())
@@ -504,7 +521,7 @@ def shake_table_gap(
         loop_draws = 20
         if law == "auto":
             base_law, law_scores, loop_fits = _pick_law(cal, AUTO_LAWS, loop_draws, seed, budget, notes,
-                                                        checkpoint)
+                                                        checkpoint, workers)
             loop = loop_fits[base_law]
         else:
             base_law = str(law)
