@@ -19,6 +19,11 @@ catalogue's start); each start runs a short screen of least squares
 (``scipy.optimize.least_squares``, trust-region reflective, bounded, same scaled coordinates),
 the best continues (the multi-start of :class:`rrfrei.gap.model.IsolatorModel`).
 
+Independent simulations (a CMA-ES generation, the columns of a finite-difference Jacobian, the
+importance draws) are evaluated as batches over the processes the caller gives the fit
+(:class:`rrfrei.forkmap.ForkMap`, :func:`rrfrei.forkmap.sharing`); the fit is bit for bit the
+one-process fit.
+
 Posterior: Laplace, ``N(x*, (J^T W J + I)^-1)`` with the tempered weights W and a unit ridge in
 scaled coordinates, checked by importance sampling (weights = tempered likelihood over the
 Gaussian proposal; its effective sample size is reported in
