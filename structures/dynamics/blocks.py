@@ -35,7 +35,8 @@ def run_blocks(one: Callable[[int], None], runs: int, n_blocks: int) -> None:
     """Call ``one(run)`` for every run in ``range(runs)``, in ``n_blocks`` contiguous blocks
     spread over ``numba.get_num_threads()`` threads (in the calling thread when that is 1 or
     there is one block).  ``one`` must release the GIL for its work (a ``nogil`` kernel) and
-    write only its own run's results; an exception in any run is raised here."""
+    write only its own run's results.  An exception in a run (or Ctrl-C) is raised here once the
+    blocks already started have finished; no further block starts."""
     n_blocks = max(1, min(int(n_blocks), runs))
 
     def run_block(b: int) -> None:
@@ -48,6 +49,11 @@ def run_blocks(one: Callable[[int], None], runs: int, n_blocks: int) -> None:
         for b in range(n_blocks):
             run_block(b)
         return
-    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="rrfrei-batch") as pool:
+    pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="rrfrei-batch")
+    try:
         for _ in pool.map(run_block, range(n_blocks)):
             pass
+    except BaseException:
+        pool.shutdown(wait=True, cancel_futures=True)  # an error or Ctrl-C: no new block starts
+        raise
+    pool.shutdown(wait=True)
