@@ -352,7 +352,8 @@ def time_history_batch(
 ) -> dict[str, np.ndarray]:
     """Peak demands of ``building`` under ``record`` for many isolator parameter sets.
 
-    Runs m analyses in parallel (Numba ``prange`` over blocks of runs).  Same integration as
+    Runs m analyses in parallel (blocks of runs on Numba's number of threads,
+    :mod:`structures.dynamics.blocks`).  Same integration as
     :func:`time_history`.
 
     Parameters

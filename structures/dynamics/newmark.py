@@ -70,18 +70,19 @@ force or correction; -4 Newton did not converge even after subdivision.
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from rrfrei.laws.specialise import unbound
 from structures.dynamics import newmark_chain as core
-from structures.dynamics.newmark_records import N_ENERGY, Histories, Layer, Summary
+from structures.dynamics.blocks import run_blocks
+from structures.dynamics.newmark_records import Histories, Layer, Summary
 
 SLOTS = ("law_step", "law_step_robust")
 law_step = unbound("law_step")
 law_step_robust = unbound("law_step_robust")
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def integrate(chain, layer, ag, dt, solver, hist):
     """One analysis from rest under the ground acceleration ``ag`` [m/s^2] every ``dt`` [s].
 
@@ -260,39 +261,22 @@ def integrate(chain, layer, ag, dt, solver, hist):
                    n_robust, drift_max * inv_height, accel_max)
 
 
-@njit(cache=True, parallel=True)
 def batch(chain, layer, params, ag, dt, solver, n_blocks, out):
     """:func:`integrate` for every parameter row of ``params`` (runs, n_params), peaks only.
 
-    The runs are split into ``n_blocks`` contiguous blocks run in parallel (Numba ``prange``),
-    one analysis per thread at a time; ``layer`` gives the bearings (its ``params`` unused).
-    Writes run r's :class:`structures.dynamics.newmark_records.Summary` into row r of the fields of
-    ``out`` (:class:`structures.dynamics.newmark_records.Batch`).
+    The runs are split into ``n_blocks`` contiguous blocks run in parallel on
+    ``numba.get_num_threads()`` threads (:func:`structures.dynamics.blocks.run_blocks`: each run
+    calls the compiled :func:`integrate`, which releases the GIL, so a batch compiles nothing of
+    its own), one analysis per thread at a time; ``layer`` gives the bearings (its ``params``
+    unused).  Writes run r's :class:`structures.dynamics.newmark_records.Summary` into row r of
+    the fields of ``out`` (:class:`structures.dynamics.newmark_records.Batch`).
     """
-    runs = params.shape[0]
-    n = chain.mass.shape[0]
-    none = Histories(np.empty((0, n)), np.empty((0, n)), np.empty((0, n - 1)), np.empty((0, n - 1)),
-                     np.empty(0), np.empty(0), np.empty((N_ENERGY, 0)), np.empty(0, dtype=np.int64),
-                     np.empty(0, dtype=np.int64), np.empty(0, dtype=np.bool_))
-    # (the result arrays are taken out of ``out`` first: Numba (0.68) loses writes made through a
-    # named tuple's field inside ``prange``)
-    status, iso_disp_peak, iso_disp_residual = out.status, out.iso_disp_peak, out.iso_disp_residual
-    base_shear_peak, iso_work, energy_error = out.base_shear_peak, out.iso_work, out.energy_error
-    subdivided, robust, drift_peak, accel_peak = (out.subdivided_steps, out.robust_steps, out.drift_peak,
-                                                  out.accel_peak)
-    for b in prange(n_blocks):
-        lo, hi = core.block(runs, n_blocks, b)
-        for run in range(lo, hi):
-            one = Layer(params[run], layer.count, layer.scale, layer.state0)
-            s = integrate(chain, one, ag, dt, solver, none)
-            status[run] = s.status
-            iso_disp_peak[run] = s.iso_disp_peak
-            iso_disp_residual[run] = s.iso_disp_residual
-            base_shear_peak[run] = s.base_shear_peak
-            iso_work[run] = s.iso_work
-            energy_error[run] = s.energy_error
-            subdivided[run] = s.subdivided_steps
-            robust[run] = s.robust_steps
-            for i in range(n - 1):
-                drift_peak[run, i] = s.drift_peak[i]
-                accel_peak[run, i] = s.accel_peak[i]
+    none = Histories.allocate(0, chain.mass.shape[0])  # peaks only (the same type as full histories)
+    fields = [getattr(out, f) for f in Summary._fields]
+
+    def one(run):
+        s = integrate(chain, Layer(params[run], layer.count, layer.scale, layer.state0), ag, dt, solver, none)
+        for field, value in zip(fields, s):
+            field[run] = value
+
+    run_blocks(one, params.shape[0], n_blocks)

@@ -144,12 +144,6 @@ def layer_scales(layer):
     return 1.0 / layer.scale, layer.count * layer.scale * layer.scale, layer.count * layer.scale
 
 
-@njit(cache=True, inline="always")
-def block(runs, n_blocks, b):
-    """The runs [lo, hi) of block ``b`` of ``n_blocks`` contiguous blocks of a batch."""
-    return (runs * b) // n_blocks, (runs * (b + 1)) // n_blocks
-
-
 @njit(cache=True)
 def condense(chain, c1, c2, lower, ratio, inv_pivot, shape, flex):
     """Condense K_L = K_s + c1 C + c2 M onto the base DOF.

@@ -339,7 +339,7 @@ def plan_time_history_batch(
 ) -> dict[str, np.ndarray]:
     """Peak demands of ``building`` in plan under ``ground`` for many isolator parameter sets.
 
-    Runs m analyses in parallel (Numba ``prange`` over blocks of runs, as
+    Runs m analyses in parallel (blocks of runs on threads, as
     :func:`structures.time_history_batch`), each the integration of :func:`plan_time_history`.
 
     Parameters

@@ -58,10 +58,11 @@ force or correction; -4 Newton did not converge even after subdivision.
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from rrfrei.laws.specialise import unbound
 from structures.dynamics import newmark_chain as core
+from structures.dynamics.blocks import run_blocks
 from structures.dynamics.newmark_records import Layer
 from structures.dynamics.plan_newmark_records import PlanHistories, PlanSummary
 
@@ -69,7 +70,7 @@ SLOTS = ("plan_step",)
 plan_step = unbound("plan_step")
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def integrate(chain_x, chain_y, layer, ag, dt, solver, hist):
     """One analysis from rest under the ground accelerations ``ag`` [m/s^2] every ``dt`` [s].
 
@@ -280,41 +281,23 @@ def integrate(chain_x, chain_y, layer, ag, dt, solver, hist):
                        accel_max)
 
 
-@njit(cache=True, parallel=True)
 def batch(chain_x, chain_y, layer, params, ag, dt, solver, n_blocks, out):
     """:func:`integrate` for every parameter row of ``params`` (runs, n_params), peaks only.
 
-    The runs are split into ``n_blocks`` contiguous blocks run in parallel (Numba ``prange``),
-    one analysis per thread at a time; ``layer`` gives the bearings (its ``params`` unused).
-    Writes run r's :class:`structures.dynamics.plan_newmark_records.PlanSummary` into row r of the fields
-    of ``out`` (:class:`structures.dynamics.plan_newmark_records.PlanBatch`).
+    The runs are split into ``n_blocks`` contiguous blocks run in parallel on
+    ``numba.get_num_threads()`` threads (:func:`structures.dynamics.blocks.run_blocks`, as
+    :func:`structures.dynamics.newmark.batch`: the compiled :func:`integrate` per run, no
+    compilation of its own), one analysis per thread at a time; ``layer`` gives the bearings (its
+    ``params`` unused).  Writes run r's :class:`structures.dynamics.plan_newmark_records.PlanSummary`
+    into row r of the fields of ``out`` (:class:`structures.dynamics.plan_newmark_records.PlanBatch`).
     """
-    runs = params.shape[0]
-    n = chain_x.mass.shape[0]
-    none = PlanHistories(np.empty((2, 0, n)), np.empty((2, 0, n)), np.empty((2, 0, n - 1)),
-                         np.empty((2, 0, n - 1)), np.empty((2, 0)), np.empty((2, 0)),
-                         np.empty((2, 5, 0)), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64),
-                         np.empty(0, dtype=np.bool_))
-    # (the result arrays are taken out of ``out`` first: Numba loses writes made through a named
-    # tuple's field inside ``prange``)
-    status, plan_peak, iso_peak, plan_residual = (out.status, out.iso_plan_disp_peak, out.iso_disp_peak,
-                                                  out.iso_plan_disp_residual)
-    shear_peak, iso_work, energy_error = out.base_shear_peak, out.iso_work, out.energy_error
-    subdivided, drift_peak, accel_peak = out.subdivided_steps, out.drift_peak, out.accel_peak
-    for b in prange(n_blocks):
-        lo, hi = core.block(runs, n_blocks, b)
-        for run in range(lo, hi):
-            one = Layer(params[run], layer.count, layer.scale, layer.state0)
-            s = integrate(chain_x, chain_y, one, ag, dt, solver, none)
-            status[run] = s.status
-            plan_peak[run] = s.iso_plan_disp_peak
-            plan_residual[run] = s.iso_plan_disp_residual
-            iso_work[run] = s.iso_work
-            energy_error[run] = s.energy_error
-            subdivided[run] = s.subdivided_steps
-            for d in range(2):
-                iso_peak[run, d] = s.iso_disp_peak[d]
-                shear_peak[run, d] = s.base_shear_peak[d]
-                for i in range(n - 1):
-                    drift_peak[run, d, i] = s.drift_peak[d, i]
-                    accel_peak[run, d, i] = s.accel_peak[d, i]
+    none = PlanHistories.allocate(0, chain_x.mass.shape[0])  # peaks only (the type of full histories)
+    fields = [getattr(out, f) for f in PlanSummary._fields]
+
+    def one(run):
+        s = integrate(chain_x, chain_y, Layer(params[run], layer.count, layer.scale, layer.state0), ag, dt,
+                      solver, none)
+        for field, value in zip(fields, s):
+            field[run] = value
+
+    run_blocks(one, params.shape[0], n_blocks)

@@ -1,8 +1,8 @@
 """Where the chunks of a propagation run: here, or on any executor with ``.submit``.
 
 :func:`run_chunk` is the task: one record x one scale x a block of parameter draws through the
-batched Newmark kernel (:func:`structures.dynamics.history.time_history_batch`, Numba ``prange`` over the
-draws).  The other functions adapt ``concurrent.futures`` executors and a
+batched Newmark kernel (:func:`structures.dynamics.history.time_history_batch`, threads over
+blocks of draws).  The other functions adapt ``concurrent.futures`` executors and a
 ``dask.distributed.Client`` to one interface.  A task on an executor sets its Numba thread count
 to ``max(1, cores // workers)`` so that threads x workers never exceeds the cores.
 

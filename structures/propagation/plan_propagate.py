@@ -80,8 +80,8 @@ def run_plan_chunk(building, pair, scale: float, params: np.ndarray, simulate: C
                    threads: int | None = None) -> dict:
     """Run the draws ``params`` (m, n_params) on ``pair`` x ``scale``: dict of per-run arrays.
 
-    By default all draws run at once in :func:`structures.plan_time_history_batch` (Numba
-    ``prange``; a run that fails holds NaN demands and ``converged`` False).  With ``simulate``
+    By default all draws run at once in :func:`structures.plan_time_history_batch` (threads
+    over blocks of draws; a run that fails holds NaN demands and ``converged`` False).  With ``simulate``
     (``simulate(building, law, params, ground) -> plan response``) each draw is one call, read by
     :func:`structures.propagation.plan_design.plan_arrays`; a ``RuntimeError`` (e.g.
     :class:`structures.ConvergenceError`) marks the run as not converged.

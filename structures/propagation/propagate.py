@@ -2,7 +2,7 @@
 
 :func:`propagate` draws ``n_samples`` full parameter sets from a calibrated posterior (up front,
 from ``seed``), runs every draw on every record at every scale with the batched Newmark kernel
-(:func:`structures.time_history_batch`, Numba ``prange`` over the draws of a chunk), and returns a
+(:func:`structures.time_history_batch`, threads over blocks of the draws of a chunk), and returns a
 :class:`ResponseSet`: a tidy table (one row per sample x record x scale) with summaries and plots.
 
 Work is cut into deterministic chunks (record, scale, block of ``chunk_size`` samples).  Chunks run
