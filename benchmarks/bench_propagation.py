@@ -11,8 +11,8 @@ Measures, in one run on this machine:
   asserted equal to openseespy's in the same run.  Warm-up excluded on both sides, the same
   interleaved repeats, medians; the ratio is (sum over records of the peer's time per analysis)
   / (sum of ours), i.e. one analysis of every record;
-* **multi-core throughput**: wall time of ``structures.propagate`` (local executor: Numba
-  ``prange`` over every core) for 1,000 draws x all bundled records at scale 1, and analyses per
+* **multi-core throughput**: wall time of ``structures.propagate`` (local executor: threads
+  over blocks of draws, every core) for 1,000 draws x all bundled records at scale 1, and analyses per
   second.  The draws are the building's parameters perturbed lognormally (10 % log-sd), which is
   what a posterior of a well-identified law looks like;
 * cold start in a fresh interpreter: import + first ``propagate`` call (one draw, short record),
@@ -148,7 +148,7 @@ timer):
 | **one analysis of every record** | {steps} | {tm.fmt(peer_sum)} | {tm.fmt(ours_sum)} | **{ratio:.0f}x** | |
 
 **Multi-core throughput** ({samples} posterior draws x {len(recs)} records, draws perturbed 10 %
-lognormally around the building's parameters, local executor, Numba `prange` on
+lognormally around the building's parameters, local executor, blocks of draws on
 {t_batch.threads} threads, default chunk size, one timed run):
 
 | quantity | value |
