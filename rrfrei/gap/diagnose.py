@@ -35,7 +35,13 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    beat every other significant effect in a leave-one-block-out comparison by the same block
    test; else the diagnosis is ``none`` and the report names the tied effects;
 5. greedy combination: add the best further effect (refit from the current combination) while
-   it stays significant against the current combination by the same rule;
+   it stays significant against the current combination by the same rule.  The effects tried are
+   the significant ones; for a model whose effects act on each other's evidence
+   (:attr:`rrfrei.gap.model.GapModel.interacting_effects`: a building fitted by output error, where
+   a missing damping puts the simulated motion out of phase and so hides what a stiffness effect
+   would close) also every effect with calibration support (its refit passes the calibration
+   part of the rule: gain and block test), since such an effect may close the held-out gap only
+   beside another;
 6. verdict (``GapReport.verdict``, ``GapReport.evidence``): the named effect (evidence: its block
    tests, shrink interval, and what is left after it); else ``"none"`` when what is left of the
    baseline is noise on the calibration and the held-out data (systematic part within the noise or
@@ -121,18 +127,23 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
     out.  A variant whose fit or scoring fails, or that the time budget stops, is left out with
     a note (the primary fit stands).
 
-    Variants are tried only for an effect whose primary fit finds a trace of it: a systematic-gap
+    Shape variants are tried only for an effect whose primary fit finds a trace of it: a systematic-gap
     shrink of at least ``VARIANT_TRACE`` (held out, or on the calibration test without held-out
     data), or a pass of the decision rule.  An effect whose own kernel closes nothing is not
     refitted in a wider shape (on the 8,257-point timber test this saves the smooth rollover's
     fit, whose primary closes 0.6 %: 2 min 56 s -> 2 min 23 s; the validation table gave the same
     310 verdicts, variants and shrinks with and without the rule, at 3.1 against 4.1 s of CPU per
-    case)."""
+    case).  A variant that changes what the model simulates rather than the kernel's shape
+    (:meth:`rrfrei.gap.model.GapModel.shape_variant` false: the building's runs each from the
+    virgin state) is tried whatever the primary fit's trace: the primary fit's failure is what it
+    may explain."""
     names = model.variants(effect)
-    if not names:
-        return fit, score
     trace = score.shrink_holdout if sc.holdout else score.shrink_calibration
     if not score.significant and math.isfinite(trace) and trace < VARIANT_TRACE:
+        # a wider shape of a kernel that closes nothing is not tried; a variant that changes
+        # what the model simulates (the building's runs from the virgin state) still is
+        names = tuple(v for v in names if not model.shape_variant(effect, v))
+    if not names:
         return fit, score
     best_fit, best = fit, score
     for v in names:
@@ -330,8 +341,11 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                             notes.append(f"early-cycle start of the refits skipped: "
                                          f"{_failure('baseline fit on the first half', exc)}")
                     rest = effects[effects.index(e):]
-                    shared = SharedRefits(ck, model, data, rest, starts, seed, budget, workers)
-                helped = shared.acquire(e)  # made by the other process: not a reuse of an earlier run's
+                    shared = SharedRefits(ck, [(effect_step(r), model.augment([r])) for r in rest
+                                               if not model.cannot_judge(r, data)],
+                                          data, starts, seed, budget, workers)
+                # made by the other process: not a reuse of an earlier run's
+                helped = shared.acquire(effect_step(e))
                 aug = model.augment([e])
                 with sharing(1 if shared.proc is not None else workers):
                     fit = _fit_or_restore(ck, effect_step(e), aug, data, budget, seed=seed, start=starts)
@@ -374,7 +388,8 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
             first = next(s for s in ranking if s.effect == diagnosis)
             combination, steps, final, current, stopped = _combine(
                 model, sc, ck, data, budget, seed, bar, notes, first=first, sig=sig, chosen=chosen, fits=fits,
-                screens=screens, combine=combine, max_combination=max_combination)
+                screens=screens, combine=combine, max_combination=max_combination, ranking=ranking,
+                workers=workers)
     diagnosis, missing, budget_message = _closing_notes(diagnosis, effects, skipped, untried, stopped,
                                                         ranking, budget, fits, ck, notes)
     try:
@@ -418,13 +433,23 @@ def _name(sc: _Scorer, fits: dict, sig: list[EffectScore], data, notes: list) ->
     return diagnosis, tied
 
 
+def _calibration_support(s: EffectScore) -> bool:
+    """The effect's refit passes the calibration part of the decision rule (gain above
+    ``MIN_GAIN`` nats and the calibration blocks' rank test)."""
+    ev = s.blocks_calibration
+    return ev is not None and ev.total > MIN_GAIN and ev.passes()
+
+
 def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBudget, seed: int, bar,
              notes: list, *, first: EffectScore, sig: list[EffectScore], chosen: dict, fits: dict,
-             screens: dict, combine: bool, max_combination: int):
+             screens: dict, combine: bool, max_combination: int, ranking: Sequence[EffectScore] = (),
+             workers: int = 1):
     """Greedy combination from the named effect ``first`` (step 5 of the module docstring): add the
     best further significant effect, refitted from the current combination, while it stays
-    significant against it.  Returns (combination, steps, final metrics, current fit, stopped by
-    the time budget)."""
+    significant against it.  A step's refits are independent (each from the current combination),
+    so a forked second process makes them from the end of the pool while this one works from the
+    front (:class:`rrfrei.gap.parallel.SharedRefits`, ``workers``).  Returns (combination, steps,
+    final metrics, current fit, stopped by the time budget)."""
     diagnosis = first.effect
     combination: list[str] = [diagnosis]
     steps: list[EffectScore] = [first]
@@ -432,32 +457,47 @@ def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBu
     current = fits[first.law]
     stopped = False  # the budget cut the combination search short
     pool = [s.effect for s in sig if s.effect != diagnosis]
+    if model.interacting_effects:
+        pool += [s.effect for s in ranking if s.effect != diagnosis and s.effect not in pool
+                 and _calibration_support(s)]
     while combine and pool and len(combination) < max_combination and not stopped:
         cand = []
         bar.total = (getattr(bar, "total", 0) or 0) + len(pool)
+        jobs = {}
         for e in pool:
-            if budget.expired():
-                stopped = True
-                break
-            bar.set_postfix_str(f"combine +{e}")
-            label = "+".join(combination + [e])
-            try:
-                picked = {k: v for k, v in chosen.items() if k in combination + [e]}
-                step_model = (model.augment(combination + [e], variants=picked) if picked
-                              else model.augment(combination + [e]))
-                tag = "".join(f"|{k}:{v}" for k, v in sorted(picked.items()))
-                fit = _fit_or_restore(ck, f"combination-{label}{tag}", step_model,
-                                      data, budget, seed=seed, start=current)
-                cand.append((replace(_score(sc, e, fit, current, screens.get(e, float("nan")),
-                                            final), variant=chosen.get(e, "")), fit))
-                fits[fit.name] = fit
-            except BudgetExceeded:
-                stopped = True
-                break
-            except NUMERICAL_ERRORS as exc:
-                notes.append(f"combination step +{e} skipped: "
-                             f"{_failure(f'refit of {model.name}+{label}', exc)}")
-            bar.update()
+            picked = {k: v for k, v in chosen.items() if k in combination + [e]}
+            tag = "".join(f"|{k}:{v}" for k, v in sorted(picked.items()))
+            step_model = (model.augment(combination + [e], variants=picked) if picked
+                          else model.augment(combination + [e]))
+            jobs[e] = (f"combination-{'+'.join(combination + [e])}{tag}", step_model)
+        shared = SharedRefits(ck, list(jobs.values()), data, current, seed, budget, workers)
+        try:
+            for e in pool:
+                if budget.expired():
+                    stopped = True
+                    break
+                bar.set_postfix_str(f"combine +{e}")
+                key, step_model = jobs[e]
+                try:
+                    helped = shared.acquire(key)
+                    with sharing(1 if shared.proc is not None else workers):
+                        fit = _fit_or_restore(ck, key, step_model, data, budget, seed=seed, start=current)
+                    if helped and key in ck.reused:
+                        ck.reused.remove(key)
+                    cand.append((replace(_score(sc, e, fit, current, screens.get(e, float("nan")),
+                                                final), variant=chosen.get(e, "")), fit))
+                    fits[fit.name] = fit
+                except BudgetExceeded:
+                    stopped = True
+                    break
+                except NUMERICAL_ERRORS as exc:
+                    notes.append(f"combination step +{e} skipped: "
+                                 f"{_failure(f'refit of {step_model.name}', exc)}")
+                bar.update()
+        finally:
+            if shared.helped:
+                notes.append(f"{len(shared.helped)} of the combination step's refits ran in a second process")
+            shared.close()
         if stopped:
             notes.append(f"combination search stopped by the time budget after "
                          f"{'+'.join(combination)}: further effects were not tried")

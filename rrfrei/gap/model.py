@@ -92,10 +92,22 @@ class GapModel(ABC):
     @abstractmethod
     def augment(self, effects: Sequence[str]) -> GapModel: ...
 
+    interacting_effects: bool = False
+    """Whether one effect's evidence depends on another being in the model (a building fitted by
+    output error: :class:`structures.shake_table.building_model.BuildingModel`); the diagnosis then
+    tries every effect with calibration support at its combination steps, not only the
+    significant ones (:func:`rrfrei.gap.diagnose.diagnose`, step 5)."""
+
     def variants(self, effect: str) -> tuple[str, ...]:
         """Further ways this model fits ``effect`` (:class:`rrfrei.laws.effects.Variant`); a model
         that has any takes ``augment(effects, variants={effect: name})``.  None by default."""
         return ()
+
+    def shape_variant(self, effect: str, variant: str) -> bool:
+        """Whether ``variant`` of ``effect`` only frees more of the kernel's shape (then the
+        diagnosis tries it only where the primary fit finds a trace of the effect); false for a
+        variant that changes what the model simulates.  True by default."""
+        return True
 
     @abstractmethod
     def observed(self, data) -> np.ndarray: ...

@@ -1,7 +1,8 @@
 """The candidates' refits shared with a second, forked process.
 
 The refits of the candidate effects (step 2 of :mod:`rrfrei.gap.diagnose`) are independent of one
-another: each starts from the baseline's fits.  With ``workers=2`` a forked process fits them from
+another: each starts from the baseline's fits; so are the refits of one combination step (step 5),
+each from the current combination.  With ``workers=2`` a forked process fits them from
 the end of the list while the diagnosis works from the front, both through the checkpoint folder:
 a fit is claimed by creating ``<step>.claim`` next to its ``.npz`` (``O_CREAT | O_EXCL``, so only
 one process fits it), and saved atomically when done; the diagnosis restores the other process's
@@ -21,7 +22,7 @@ from collections.abc import Sequence
 
 from rrfrei.budget import TimeBudget
 from rrfrei.forkmap import sharing
-from rrfrei.gap.checkpoint import Checkpoint, _fit_or_restore, effect_step
+from rrfrei.gap.checkpoint import Checkpoint, _fit_or_restore
 
 __all__ = ["SharedRefits", "default_workers"]
 
@@ -41,23 +42,24 @@ class SharedRefits:
     Parameters
     ----------
     ck : the diagnosis's checkpoint (its folder is where the processes meet).
-    model, data, effects, starts, seed, budget : what the refits need, as the diagnosis calls them:
-        ``model.augment([e]).fit(data, seed=seed, start=starts)`` for each ``e`` of ``effects``.
+    jobs : (checkpoint step, model) of each refit, in the diagnosis's order: what the refits need, as
+        the diagnosis calls them, ``model.fit(data, seed=seed, start=starts)``.
+    data, starts, seed, budget : as those calls take them.
     workers : processes in all; 1 (or no folder, or no fork): none is started.
     """
 
-    def __init__(self, ck: Checkpoint, model, data, effects: Sequence[str], starts, seed: int,
+    def __init__(self, ck: Checkpoint, jobs: Sequence[tuple[str, object]], data, starts, seed: int,
                  budget: TimeBudget, workers: int = 1) -> None:
-        self.ck, self.model, self.data = ck, model, data
+        self.ck, self.data = ck, data
         self.starts, self.seed, self.budget = starts, seed, budget
-        self.effects = list(effects)
+        self.jobs = list(jobs)
         self.proc = None
         self.helped: set[str] = set()
         if workers < 2 or ck.folder is None or "fork" not in multiprocessing.get_all_start_methods():
             return
         if multiprocessing.current_process().daemon:  # a pool's worker may not have children
             return
-        if len(self.effects) < 2:
+        if len(self.jobs) < 2:
             return
         self._unclaim()  # claims left by an interrupted run
         ck.folder.mkdir(parents=True, exist_ok=True)
@@ -81,9 +83,9 @@ class SharedRefits:
         return True
 
     def _unclaim(self) -> None:
-        for e in self.effects:
+        for step, _ in self.jobs:
             try:
-                os.unlink(self._claim_path(effect_step(e)))
+                os.unlink(self._claim_path(step))
             except FileNotFoundError:
                 pass
 
@@ -94,23 +96,23 @@ class SharedRefits:
             self._fit_from_the_end()
 
     def _fit_from_the_end(self) -> None:
-        for e in reversed(self.effects):
+        for step, model in reversed(self.jobs):
             if self.budget.expired():
                 return
-            if self.model.cannot_judge(e, self.data) or not self._claim(effect_step(e)):
+            if not self._claim(step):
                 continue
             try:
-                _fit_or_restore(self.ck, effect_step(e), self.model.augment([e]), self.data, self.budget,
-                                seed=self.seed, start=self.starts)
+                _fit_or_restore(self.ck, step, model, self.data, self.budget, seed=self.seed,
+                                start=self.starts)
             except BaseException:  # noqa: BLE001 - the diagnosis refits it and reports the failure
                 continue
 
-    def acquire(self, effect: str) -> bool:
-        """Before the diagnosis fits ``effect``: claim it, or wait until the other process has saved
-        its fit (or has ended: the diagnosis then fits it).  Whether the other process made it."""
+    def acquire(self, step: str) -> bool:
+        """Before the diagnosis makes the fit of checkpoint ``step``: claim it, or wait until the other
+        process has saved it (or has ended: the diagnosis then fits it).  Whether the other process
+        made it."""
         if self.proc is None:
             return False
-        step = effect_step(effect)
         if self._claim(step):
             return False
         path = self.ck._path(step)

@@ -151,7 +151,8 @@ def verdict_text(rep: GapReport) -> str:
     steps = named.get("steps", [])
     txt = f"Verdict `{v}`: named by the decision rule ({steps[0]['why'] if steps else ''})"
     if len(rep.combination) > 1:
-        txt += f"; combination `{'+'.join(rep.combination)}`"
+        labels = {s.effect: s.label for s in rep.steps}
+        txt += f"; combination `{'+'.join(labels.get(e, e) for e in rep.combination)}`"
     left = ev.get("left", {})
     if left:
         txt += (". What is left after it: " + "; ".join(f"{k}: {_left(d)}" for k, d in left.items())

@@ -16,6 +16,22 @@ Free parameters
   k_j,run = k_scale k_j (A_run / A_ref)^(-soft_exp) with A the run's peak table acceleration and
   A_ref the largest of the calibration runs (each run is simulated with its own stiffness; the
   runs before it are driven with the same building, so the isolators' carried state is kept).
+
+Memory between runs
+-------------------
+By default every run starts from the state the run before left (after ``pad_s`` of rest).  An
+effect whose state is a damage history (``mullins``, ``scragging``, ``degradation``:
+:attr:`rrfrei.laws.effects.EffectSpec.memory`) is also fitted as its ``recovering`` variant
+(:meth:`BuildingModel.variants`): every run driven from the virgin state, as when the rests
+between shake-table runs (minutes to hours, against the seconds of a run) let the rubber's
+softening recover (Mullins 1948; the transient part of scragging, Thompson et al. 2000).  The
+engine keeps the variant only when it beats the carried fit on the held-out blocks.  On BNCS the
+measured loops show both: at equal amplitude a run's cycles after its largest excursion are
+softer than before it, and the next run starts stiffer again (``docs/shake_table.md``).
+
+The effects of a building act on each other's evidence (:attr:`interacting_effects`): output
+error carries every missing effect forward in the simulated motion, so the diagnosis's combination
+steps try every effect with calibration support, not only those significant alone.
 """
 
 from __future__ import annotations
@@ -31,6 +47,7 @@ from rrfrei.gap.catalogue import catalogue
 from rrfrei.gap.model import FitResult, GapModel, IsolatorModel, test_scales
 from rrfrei.io import ShearTest
 from rrfrei.laws import LawSpec, get
+from rrfrei.laws.effects import EFFECTS
 from structures.shake_table.building_fit import BuildingFit
 from structures.shake_table.output_error import GLOBAL_EVALS, MAX_NFEV, REFIT_GLOBAL_EVALS, fit_output_error
 from structures.shake_table.simulation import (
@@ -41,10 +58,13 @@ from structures.shake_table.simulation import (
     simulate,
 )
 
-__all__ = ["SYSTEM_EFFECTS", "BuildingModel"]
+__all__ = ["RECOVERING", "SYSTEM_EFFECTS", "BuildingModel"]
 
 SYSTEM_EFFECTS = ("isolation_damping", "softening")
 """System effects the building model adds besides the isolator effects of the catalogue."""
+RECOVERING = "recovering"
+"""The variant of a history effect (:attr:`rrfrei.laws.effects.EffectSpec.memory`) whose runs each
+start from the virgin state (:meth:`BuildingModel.variants`)."""
 WINDOW_S = 10.0
 """Length of the time windows that are the blocks of the decision rule [s]."""
 K_SCALE_BOX = (0.5, 2.0)
@@ -95,13 +115,21 @@ class BuildingModel(GapModel):
     loop_fit : the isolator loop fit of the base law on ``start_test`` (an
         :class:`rrfrei.gap.model.IsolatorFit`), computed once and shared by augmented models.
     a_ref : reference peak table acceleration of ``softening`` [m/s^2].
+    recover : every run is driven from the isolators' virgin state instead of the state the run
+        before left (:data:`RECOVERING`; by default the state is carried).
     """
+
+    interacting_effects = True
+    """Output error: the simulated motion carries every effect's error forward (a missing damping
+    puts it out of phase, hiding what a stiffness effect would close), so the diagnosis tries the
+    effects with calibration support at its combination steps too."""
 
     def __init__(self, law: str | LawSpec, superstructure, start_test: ShearTest, scales: Mapping[str, float],
                  *, system: Sequence[str] = (), draws: int = 30, loop_fit=None, a_ref: float = 1.0,
                  max_nfev: int = MAX_NFEV, global_evals: int = GLOBAL_EVALS,
-                 refit_global_evals: int = REFIT_GLOBAL_EVALS) -> None:
+                 refit_global_evals: int = REFIT_GLOBAL_EVALS, recover: bool = False) -> None:
         self.spec = get(law)
+        self.recover = bool(recover)
         self.sup = Superstructure.of(superstructure)
         self.start_test = start_test
         self.scales = {c: float(scales[c]) for c in REPORT_CHANNELS}
@@ -130,13 +158,30 @@ class BuildingModel(GapModel):
     # --- identity -------------------------------------------------------------------------
     @property
     def name(self) -> str:  # type: ignore[override]
-        return "+".join([self.spec.name, *self.system])
+        return "+".join([self.spec.name, *self.system]) + (f" ({RECOVERING})" if self.recover else "")
 
     @property
     def effects(self) -> tuple[str, ...]:
         return tuple(self.spec.effects) + self.system
 
+    def variants(self, effect: str) -> tuple[str, ...]:
+        """``("recovering",)`` for an effect whose state is a damage history
+        (:attr:`rrfrei.laws.effects.EffectSpec.memory`): the same effect with every run driven
+        from the virgin state, as if the rests between runs let the rubber recover."""
+        spec = EFFECTS.get(effect)
+        return (RECOVERING,) if spec is not None and spec.memory else ()
+
+    def shape_variant(self, effect: str, variant: str) -> bool:
+        """The recovering variant changes what is simulated, not the effect's shape."""
+        return variant != RECOVERING
+
     def augment(self, effects: Sequence[str], variants: Mapping[str, str] | None = None) -> BuildingModel:
+        for effect, v in (variants or {}).items():
+            if v != RECOVERING or effect not in effects or RECOVERING not in self.variants(effect):
+                raise ValueError(f"unknown variant {v!r} of {effect!r} for the building model; expected "
+                                 f"{RECOVERING!r} of an effect being added with a damage history "
+                                 f"({', '.join(e for e in EFFECTS if EFFECTS[e].memory)})")
+        recover = self.recover or bool(variants)
         iso = [e for e in effects if e not in SYSTEM_EFFECTS]
         sysx = [e for e in effects if e in SYSTEM_EFFECTS]
         base = self.spec.name.split("+")[0]
@@ -144,7 +189,7 @@ class BuildingModel(GapModel):
         return BuildingModel(law, self.sup, self.start_test, self.scales, system=[*self.system, *sysx],
                              draws=self.draws, loop_fit=self.loop_fit, a_ref=self.a_ref,
                              max_nfev=self.max_nfev, global_evals=self.global_evals,
-                             refit_global_evals=self.refit_global_evals)
+                             refit_global_evals=self.refit_global_evals, recover=recover)
 
     @property
     def candidate_effects(self) -> tuple[str, ...]:
@@ -230,7 +275,7 @@ class BuildingModel(GapModel):
                 return -97, {}
         return simulate(self.spec, p, self.sup, data, k_scale=vals["k_scale"], zeta=vals["zeta"],
                         c_iso=vals.get("c_iso", 0.0), soft_exp=vals.get("soft_exp", 0.0), a_ref=self.a_ref,
-                        tally=tally)
+                        recover=self.recover, tally=tally)
 
     def starts(self, start) -> list[dict[str, float]]:
         """Start points (dicts of parameter values): from fits given (their parameters, with each
@@ -290,6 +335,8 @@ class BuildingModel(GapModel):
                     "scales": self.scales, "max_nfev": self.max_nfev, "format_fit": 2,
                     "global": [self.global_evals, self.refit_global_evals],
                     "start": None if self.loop_fit is None else sorted(self.loop_fit.params.items())}
+        if self.recover:
+            settings["recover"] = True
         h.update(json.dumps(settings, sort_keys=True, default=str).encode())
         return h.hexdigest()
 

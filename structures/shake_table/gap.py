@@ -559,12 +559,15 @@ def shake_table_gap(
     base_fit = rep.fits[model.name]
     final_fit = base_fit
     if rep.combination:
-        final_fit = rep.fits.get(model.augment(list(rep.combination)).name, base_fit)
+        # the combination's fit, with the variant each effect was fitted as (a history effect's
+        # runs from the virgin state: "bouc_wen+rate+mullins (recovering)")
+        variants = {s.effect: s.variant for s in rep.steps if s.variant}
+        final_fit = rep.fits[model.augment(list(rep.combination), variants=variants or None).name]
     before = building_prediction(base_fit, data_of, order)
     after = before if final_fit is base_fit else building_prediction(final_fit, data_of, order)
     check_rows = []
     if ho_seq:
-        cands_fit = [("baseline", base_fit)] + [(e.effect, rep.fits[e.law]) for e in rep.ranking
+        cands_fit = [("baseline", base_fit)] + [(e.label, rep.fits[e.law]) for e in rep.ranking
                                                 if e.law in rep.fits]
         for label, fit in cands_fit:
             row = {}

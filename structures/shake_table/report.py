@@ -142,7 +142,10 @@ def reading(res: ShakeTableGap) -> str:
     ff = res.final_fit
     lines.append(f"Building calibrated by output error on {', '.join(res.calibrate)}: the superstructure "
                  f"from {res.identified_on} on the isolator law {res.law}, driven by every run's measured "
-                 "table acceleration in order (isolator state carried), its simulated isolator displacement, "
+                 "table acceleration in order (isolator state carried"
+                 + ("; the final model's runs each from the isolators' virgin state, which recover between "
+                    "runs" if ff is not None and getattr(ff.model, "recover", False) else "")
+                 + "), its simulated isolator displacement, "
                  "isolation-layer force and roof acceleration fitted to the measured ones"
                  + (f" (importance-sampling check of the Laplace posterior: effective sample size "
                     f"{ff.ess:.1f} of {ff.X.shape[0]})" if ff is not None else "")

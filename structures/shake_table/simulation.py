@@ -161,6 +161,13 @@ class BuildingData:
     def run(self, name: str) -> ShakeTableRun:
         return next(r for r in self.runs if r.name == name)
 
+    def alone(self, name: str) -> BuildingData:
+        """The observed run ``name`` driven on its own, from rest (built once, then kept)."""
+        cache = self.__dict__.setdefault("_alone", {})
+        if name not in cache:
+            cache[name] = BuildingData((self.run(name),), observed=(name,), pad_s=self.pad_s)
+        return cache[name]
+
     def measured(self, run: str) -> dict[str, np.ndarray]:
         return self._meas[run]
 
@@ -177,7 +184,7 @@ class BuildingData:
 
 def simulate(spec: LawSpec, law_p: np.ndarray, sup: Superstructure, data: BuildingData, *,
              k_scale: float = 1.0, zeta: float | None = None, c_iso: float = 0.0, soft_exp: float = 0.0,
-             a_ref: float | None = None, tally: dict | None = None
+             a_ref: float | None = None, recover: bool = False, tally: dict | None = None
              ) -> tuple[int, dict[str, dict[str, np.ndarray]]]:
     """Simulate the building through ``data``'s runs; (status, run -> channel -> (n,) arrays).
 
@@ -187,7 +194,23 @@ def simulate(spec: LawSpec, law_p: np.ndarray, sup: Superstructure, data: Buildi
     ``"robust_steps"`` grows by the output steps where it acted, ``"robust_sims"`` by one when it
     acted at all).  Status 0 on success; otherwise the kernel's status (Newton failed even so) or
     -3 (non-finite output).  Displacements are measured from each run's start, as the records are.
+
+    ``recover``: every observed run is driven from the isolators' virgin state (the runs before it
+    are not simulated): the rests between shake-table runs, minutes to hours against the seconds
+    of a run, let the rubber's history-dependent softening recover (:attr:`rrfrei.laws.effects.
+    EffectSpec.memory`).  For a law without such an effect this changes only the hysteretic
+    state a run starts from, which the records' zeroed displacements already leave out.
     """
+    if recover:
+        a_ref = a_ref or max(data.peak_table_accel(o) for o in data.observed)
+        out = {}
+        for o in data.observed:
+            st, one = simulate(spec, law_p, sup, data.alone(o), k_scale=k_scale, zeta=zeta, c_iso=c_iso,
+                               soft_exp=soft_exp, a_ref=a_ref, recover=False, tally=tally)
+            if st != 0:
+                return st, {}
+            out.update(one)
+        return 0, out
     zeta = sup.zeta if zeta is None else zeta
     out: dict[str, dict[str, np.ndarray]] = {}
     m = sup.masses

@@ -131,7 +131,12 @@ class EffectSpec:
     ``neutral`` holds the parameter values at which the augmented law is the base law exactly.
     Exactly one of ``apply`` (an inner effect: scaling or additive) and ``capacity`` (a series
     rigid-plastic slider, one state variable) is given; see the package docstring.  ``hints``
-    makes the effect a candidate of the gap diagnosis (:class:`DiagnosisHints`).
+    makes the effect a candidate of the gap diagnosis (:class:`DiagnosisHints`).  ``memory``: the
+    state holds a damage history (a largest past displacement, a cumulative work) that a rest
+    long against the loading lets the rubber recover (Mullins 1948, "Studies in the absorption of
+    energy by rubber", J. Rubber Res. 17: softening recovers with time at rest; Thompson et al.
+    2000, scragged bearings recover part of their virgin stiffness), so a model of runs separated
+    by rests may start each run from the virgin state of such an effect.
     """
 
     name: str
@@ -145,6 +150,7 @@ class EffectSpec:
     compliance: Callable | None = field(default=None, compare=False, repr=False)
     compliance_param: int = 0
     stick: Callable | None = field(default=None, compare=False, repr=False)
+    memory: bool = False
 
     def __post_init__(self) -> None:
         if (self.apply is None) == (self.capacity is None):

@@ -109,4 +109,4 @@ EFFECT = register_effect(EffectSpec(
                "amplitude exponent m of the travel measure T_m = int |d(|u|^m)| (1: travel, "
                "-> 0: cycle count)", Prior("uniform", 0.1, 2.0), default=1.0)),
     5, "strength and stiffness fade with cumulative dissipated energy and travel", (0.0, 0.0, 1.0),
-    apply=apply, hints=HINTS))
+    apply=apply, hints=HINTS, memory=True))

@@ -73,4 +73,4 @@ EFFECT = register_effect(EffectSpec(
                Prior("lognormal", 1.0, 1.0))),
     1, "Mullins softening: softer reloading below the previous maximum deformation (recovers beyond it)",
     (0.0, 1.0), apply=apply,
-    hints=HINTS))
+    hints=HINTS, memory=True))

@@ -96,4 +96,4 @@ EFFECT = register_effect(EffectSpec(
                "Weibull shape k of the softening in the peak (1: exponential; > 1: sets in near u_c)",
                Prior("uniform", 0.5, 6.0), default=1.0)),
     1, "scragging: permanent softening with the largest displacement ever reached", (0.0, 1.0, 1.0),
-    apply=apply, hints=HINTS))
+    apply=apply, hints=HINTS, memory=True))
