@@ -1,9 +1,10 @@
 """Which effects a combination step tries (rrfrei.gap.diagnose, step 5).
 
 The significant effects always; for a model whose effects act on each other's evidence
-(``GapModel.interacting_effects``: a building fitted by output error) also every effect with
-calibration support, because such an effect may close the held-out gap only beside another.  An
-effect tried so is still named only when it passes the whole rule against the current combination.
+(``GapModel.interacting_effects``: a building fitted by output error) also every effect whose gains
+pass the rule's rank tests (calibration and held-out blocks) but whose shrink alone is too small,
+because such an effect may close the held-out gap only beside another.  An effect tried so is
+still named only when it passes the whole rule against the current combination.
 
 The model is the engine tests' linear one (tests/test_gap_robust.py): force = b0 u + effect
 regressors, exact least squares.
@@ -30,11 +31,11 @@ class InteractingLinear(LinearModel):
                                  fail=self.fail, calls=self.calls)
 
 
-def test_an_interacting_model_tries_the_effects_with_calibration_support_in_its_combination(monkeypatch):
-    """force = 2 u + 0.3 |u|: asymmetry is named; rollover, given calibration support here, is tried
+def test_an_interacting_model_tries_the_effects_with_consistent_gains_in_its_combination(monkeypatch):
+    """force = 2 u + 0.3 |u|: asymmetry is named; rollover, given consistent gains here, is tried
     beside it by the interacting model only, and not combined (it closes nothing held out)."""
     dg = sys.modules["rrfrei.gap.diagnose"]  # the module (the package exports its function by this name)
-    monkeypatch.setattr(dg, "_calibration_support", lambda s: s.effect == "rollover")
+    monkeypatch.setattr(dg, "_consistent", lambda s: s.effect == "rollover")
     cal, ho = _robust_tests()
     plain, inter = LinearModel(), InteractingLinear()
     for m in (plain, inter):
@@ -43,7 +44,7 @@ def test_an_interacting_model_tries_the_effects_with_calibration_support_in_its_
         assert rep.combination == ("asymmetry",)
     assert "linear+asymmetry+rollover" in inter.calls
     assert not any(c.startswith("linear+asymmetry+") for c in plain.calls)
-    assert "linear+asymmetry+degradation" not in inter.calls  # no support, not tried
+    assert "linear+asymmetry+degradation" not in inter.calls  # not consistent, not tried
 
 
 def _evidence(total: float, positive: int, blocks: int = 20) -> RankEvidence:
@@ -51,14 +52,18 @@ def _evidence(total: float, positive: int, blocks: int = 20) -> RankEvidence:
     return RankEvidence(blocks=blocks, positive=positive, total=total, p_sign=p, p_wilcoxon=p)
 
 
-def test_calibration_support_is_the_calibration_part_of_the_rule():
-    """Gain above MIN_GAIN nats and the calibration blocks' rank test: both needed."""
-    from rrfrei.gap.diagnose import MIN_GAIN, _calibration_support
+def test_consistent_gains_are_the_rank_tests_of_the_rule_without_the_shrink_bound():
+    """Calibration gain above MIN_GAIN nats with its blocks' test, and the held-out blocks' test:
+    each needed; without held-out data the calibration part decides."""
+    from rrfrei.gap.diagnose import MIN_GAIN, _consistent
 
-    def score(ev):
-        return SimpleNamespace(blocks_calibration=ev)
+    def score(cal, ho):
+        return SimpleNamespace(blocks_calibration=cal, blocks_holdout=ho)
 
-    assert _calibration_support(score(_evidence(MIN_GAIN + 20, 19)))
-    assert not _calibration_support(score(_evidence(MIN_GAIN - 1, 19)))  # too small a gain
-    assert not _calibration_support(score(_evidence(MIN_GAIN + 20, 11)))  # carried by a few blocks
-    assert not _calibration_support(score(None))
+    good, few = _evidence(MIN_GAIN + 20, 19), _evidence(MIN_GAIN + 20, 11)
+    assert _consistent(score(good, good))
+    assert _consistent(score(good, None))  # no held-out data
+    assert not _consistent(score(_evidence(MIN_GAIN - 1, 19), good))  # too small a gain
+    assert not _consistent(score(few, good))  # calibration gains carried by a few blocks
+    assert not _consistent(score(good, few))  # held-out blocks as often worse as better
+    assert not _consistent(score(None, good))

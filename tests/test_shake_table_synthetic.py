@@ -111,6 +111,27 @@ def test_a_sequence_is_shake_table_runs_with_state_carried_and_noise_on_every_ch
     assert clean[1].meta["truth"]["effect"] == "degradation"
 
 
+def test_a_recovering_softening_softens_after_a_large_excursion_and_recovers_between_runs():
+    """Within a run the damage follows the largest excursion quickly and holds after it (it
+    recovers over minutes); the unrecorded hour between runs restores the layer: the same motion
+    run again gives the same loop, unlike the same runs without that rest."""
+    b = with_effect(SyntheticBuilding(), "recovering_softening", 0.4)
+    ag, _ = table_motion(20.0, 50.0, seed=3)
+    d, _, _, state = simulate_building(b, 1.5 * ag, 0.02)
+    reached = np.tanh(np.max(np.abs(d[:, 0])) / b.effect_params()["x_r"])
+    assert 0.5 * reached < state[-1] <= reached  # held after the excursion (tau_rec = 300 s)
+    kw = dict(seed=3, noise=0.0, disp_noise=0.0, duration=20.0, tail_s=0.0)
+    again = synthetic_sequence(b, (1.5, 1.5), **kw)
+    carried = synthetic_sequence(with_effect(b, "recovering_softening", 0.4, gap_s=0.0), (1.5, 1.5), **kw)
+
+    def repeat_gap(runs):  # how far the second run's isolator displacement is from the first's
+        u0, u1 = runs[0].isolator_disp, runs[1].isolator_disp
+        return float(np.sqrt(np.mean((u1 - u0) ** 2) / np.mean(u0**2)))
+
+    assert repeat_gap(again) < 0.01
+    assert repeat_gap(carried) > 0.05
+
+
 def test_a_displacement_transducer_is_as_noisy_on_a_small_run_as_on_a_large_one():
     """A transducer's noise is set by its range and its channel, not by the motion: the roof's
     displacement noise is the same on a run at a third of the table motion (the earlier model,

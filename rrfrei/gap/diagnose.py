@@ -39,9 +39,9 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    the significant ones; for a model whose effects act on each other's evidence
    (:attr:`rrfrei.gap.model.GapModel.interacting_effects`: a building fitted by output error, where
    a missing damping puts the simulated motion out of phase and so hides what a stiffness effect
-   would close) also every effect with calibration support (its refit passes the calibration
-   part of the rule: gain and block test), since such an effect may close the held-out gap only
-   beside another;
+   would close) also every effect whose refit passes the rule's rank tests (the calibration gain
+   and blocks, and the held-out blocks) and misses only its shrink bound: its gains are
+   consistent but alone too small, as an effect's are when a missing partner masks them;
 6. verdict (``GapReport.verdict``, ``GapReport.evidence``): the named effect (evidence: its block
    tests, shrink interval, and what is left after it); else ``"none"`` when what is left of the
    baseline is noise on the calibration and the held-out data (systematic part within the noise or
@@ -433,11 +433,13 @@ def _name(sc: _Scorer, fits: dict, sig: list[EffectScore], data, notes: list) ->
     return diagnosis, tied
 
 
-def _calibration_support(s: EffectScore) -> bool:
-    """The effect's refit passes the calibration part of the decision rule (gain above
-    ``MIN_GAIN`` nats and the calibration blocks' rank test)."""
-    ev = s.blocks_calibration
-    return ev is not None and ev.total > MIN_GAIN and ev.passes()
+def _consistent(s: EffectScore) -> bool:
+    """The effect's refit passes the decision rule's rank tests: the calibration gain above
+    ``MIN_GAIN`` nats with the calibration blocks' test, and the held-out blocks' test when there
+    are held-out data (whatever its shrink)."""
+    ev, ho = s.blocks_calibration, s.blocks_holdout
+    return (ev is not None and ev.total > MIN_GAIN and ev.passes()
+            and (ho is None or ho.passes()))
 
 
 def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBudget, seed: int, bar,
@@ -459,7 +461,7 @@ def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBu
     pool = [s.effect for s in sig if s.effect != diagnosis]
     if model.interacting_effects:
         pool += [s.effect for s in ranking if s.effect != diagnosis and s.effect not in pool
-                 and _calibration_support(s)]
+                 and _consistent(s)]
     while combine and pool and len(combination) < max_combination and not stopped:
         cand = []
         bar.total = (getattr(bar, "total", 0) or 0) + len(pool)

@@ -95,8 +95,9 @@ class GapModel(ABC):
     interacting_effects: bool = False
     """Whether one effect's evidence depends on another being in the model (a building fitted by
     output error: :class:`structures.shake_table.building_model.BuildingModel`); the diagnosis then
-    tries every effect with calibration support at its combination steps, not only the
-    significant ones (:func:`rrfrei.gap.diagnose.diagnose`, step 5)."""
+    tries at its combination steps every effect whose gains are consistent (the rule's rank tests
+    pass) but alone too small, not only the significant ones (:func:`rrfrei.gap.diagnose.diagnose`,
+    step 5)."""
 
     def variants(self, effect: str) -> tuple[str, ...]:
         """Further ways this model fits ``effect`` (:class:`rrfrei.laws.effects.Variant`); a model

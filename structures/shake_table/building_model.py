@@ -31,7 +31,7 @@ softer than before it, and the next run starts stiffer again (``docs/shake_table
 
 The effects of a building act on each other's evidence (:attr:`interacting_effects`): output
 error carries every missing effect forward in the simulated motion, so the diagnosis's combination
-steps try every effect with calibration support, not only those significant alone.
+steps also try the effects whose gains pass the rule's rank tests but are alone too small.
 """
 
 from __future__ import annotations
@@ -121,8 +121,8 @@ class BuildingModel(GapModel):
 
     interacting_effects = True
     """Output error: the simulated motion carries every effect's error forward (a missing damping
-    puts it out of phase, hiding what a stiffness effect would close), so the diagnosis tries the
-    effects with calibration support at its combination steps too."""
+    puts it out of phase, hiding what a stiffness effect would close), so the diagnosis tries at
+    its combination steps the effects whose gains are consistent but alone too small, too."""
 
     def __init__(self, law: str | LawSpec, superstructure, start_test: ShearTest, scales: Mapping[str, float],
                  *, system: Sequence[str] = (), draws: int = 30, loop_fit=None, a_ref: float = 1.0,

@@ -31,7 +31,15 @@ The *withheld effects* (forms the project's catalogue does not hold verbatim), `
   spring, V_j = k_j d / sqrt(1 + (d / d_s)^2) (d the drift; secant stiffness falls with it);
 * ``"stiffening"``: isolator stiffening by an exponential, F_w = k_h d_h (exp(|x_0| / d_h) - 1 -
   |x_0| / d_h) sgn(x_0) (smooth from zero, grows faster than any power);
-* ``"degradation"``: strength and stiffness fade with hysteretic energy, g = exp(-max E / E_0).
+* ``"degradation"``: strength and stiffness fade with hysteretic energy, g = exp(-max E / E_0);
+* ``"recovering_softening"``: strength and stiffness soften after large excursions and recover at
+  rest, g = 1 - s D with a damage D that rises quickly towards tanh(|x_0| / x_r) whenever that is
+  larger (D' = (tanh(|x_0| / x_r) - D) / tau_on) and otherwise recovers slowly (D' = -D / tau_rec,
+  tau_rec = 300 s, long against a run's strong motion), and between runs over ``gap_s`` = 1 h of
+  unrecorded rest (D times exp(-gap_s / tau_rec)): the Mullins softening of a filled rubber and its
+  recovery with time (Mullins 1948), the transient part of an HDR bearing's scragging.  No
+  catalogue kernel has this form: ``mullins`` softens only below the largest past displacement and
+  ``scragging`` by the largest displacement ever, neither recovers in time.
 
 Integration: classical RK4 at ``substeps`` sub-steps per output sample, the table acceleration
 linear between samples.  The absolute level accelerations are the equation's right-hand side
@@ -74,7 +82,7 @@ from structures.shake_table import ShakeTableRun
 __all__ = ["DISP_NOISE_M", "EFFECTS", "SyntheticBuilding", "energy_balance", "simulate_building",
            "synthetic_sequence", "table_motion", "with_effect"]
 
-EFFECTS = ("none", "viscous_power", "softening", "stiffening", "degradation")
+EFFECTS = ("none", "viscous_power", "softening", "stiffening", "degradation", "recovering_softening")
 """The withheld effects (module docstring); ``"none"`` is the control."""
 
 
@@ -157,6 +165,7 @@ class SyntheticBuilding:
             "softening": {"d_s": 0.004 / max(s, 1e-12)},
             "stiffening": {"k_h": s * self.alpha * self.k_init, "d_h": 0.03},
             "degradation": {"E_0": self.qd * 2.0 / max(s, 1e-12)},
+            "recovering_softening": {"s": s, "x_r": 0.06, "tau_on": 1.0, "tau_rec": 300.0, "gap_s": 3600.0},
         }[self.effect]
         return {**base, **self.effect_kw}
 
@@ -192,7 +201,7 @@ def _story_forces(b: SyntheticBuilding, d: np.ndarray, kp: dict) -> np.ndarray:
 
 
 def _rhs(b: SyntheticBuilding, kp: dict, y: np.ndarray, ag: float, m: np.ndarray, cst: np.ndarray):
-    """Time derivative of the state y = [x (L), v (L), z, E, E_max] and the level forces."""
+    """Time derivative of the state y = [x (L), v (L), z, E, E_max, D] and the level forces."""
     L = m.size
     x = y[:L]
     v = y[L:2 * L]
@@ -205,7 +214,16 @@ def _rhs(b: SyntheticBuilding, kp: dict, y: np.ndarray, ag: float, m: np.ndarray
     zv = z * v0
     sg = 1.0 if zv > 0.0 else (-1.0 if zv < 0.0 else 0.0)
     dz = (v0 / uy) * (1.0 - abs(z) ** b.eta * (b.gamma + b.beta * sg)) if b.qd > 0.0 else 0.0
-    g = math.exp(-emax / kp["E_0"]) if b.effect == "degradation" else 1.0
+    dD = 0.0
+    if b.effect == "degradation":
+        g = math.exp(-emax / kp["E_0"])
+    elif b.effect == "recovering_softening":
+        D = y[2 * L + 3]
+        target = math.tanh(abs(x0) / kp["x_r"])
+        dD = (target - D) / kp["tau_on"] if target > D else -D / kp["tau_rec"]
+        g = 1.0 - kp["s"] * D
+    else:
+        g = 1.0
     f_iso = g * (b.qd * z + b.alpha * b.k_init * x0) + b.c_iso * v0
     if b.effect == "viscous_power":
         f_iso += kp["c_v"] * math.copysign(abs(v0) ** kp["a"], v0)
@@ -228,6 +246,7 @@ def _rhs(b: SyntheticBuilding, kp: dict, y: np.ndarray, ag: float, m: np.ndarray
     out[2 * L] = dz
     out[2 * L + 1] = dE
     out[2 * L + 2] = dEmax
+    out[2 * L + 3] = dD
     return out, acc_abs, f_iso
 
 
@@ -250,7 +269,7 @@ def _simulate(b, table_accel, dt, substeps, state):
     L = m.size
     kp = b.effect_params()
     cst = 2.0 * b.zeta * np.asarray(b.stiffness) / b.omega1()
-    y = np.zeros(2 * L + 3) if state is None else np.array(state, dtype=float)
+    y = np.zeros(2 * L + 4) if state is None else np.array(state, dtype=float)
     ag = np.asarray(table_accel, dtype=float)
     n = ag.size
     disp = np.empty((n, L))
@@ -326,6 +345,9 @@ def synthetic_sequence(b: SyntheticBuilding, peaks: Sequence[float] = (1.0, 2.0,
         disp, acc, fiso, state = simulate_building(b, ag, dt, substeps=substeps, state=state)
         if n_rest:
             _, _, _, state = simulate_building(b, np.zeros(n_rest), dt, substeps=substeps, state=state)
+        if b.effect == "recovering_softening":  # the unrecorded hour between runs, at rest
+            kp = b.effect_params()
+            state[-1] *= math.exp(-kp["gap_s"] / kp["tau_rec"])
         # each run's displacements are measured from its own start (as the table's sensors)
         disp = disp - disp[0]
 
