@@ -83,3 +83,22 @@ def test_a_pools_worker_diagnoses_in_one_process(truth, monkeypatch, tmp_path, s
     rep = diagnose(m, cal, [ho], effects=EFFECTS, checkpoint=tmp_path / "pool", workers=2, combine=False)
     assert _summary(rep) == sequential
     assert not any("second process" in str(n) for n in rep.notes)
+
+
+def _labelled(rep):
+    return (rep.verdict, rep.combination, [s.label for s in rep.steps],
+            [(s.label, s.significant, s.shrink_calibration, s.shrink_holdout) for s in rep.ranking])
+
+
+def test_variants_and_combination_steps_in_two_processes_give_the_sequential_report(truth, monkeypatch,
+                                                                                   tmp_path):
+    """History effects bring their recovering variants (two fits) and the building's combination
+    steps their refits: shared with a second process, the report is the sequential one."""
+    memory = ["mullins", "scragging", "rate"]
+    m, cal, ho = _case(truth, monkeypatch)
+    one = diagnose(m, cal, [ho], effects=memory, checkpoint=tmp_path / "one", workers=1)
+    m, cal, ho = _case(truth, monkeypatch)
+    two = diagnose(m, cal, [ho], effects=memory, checkpoint=tmp_path / "two", workers=2)
+    assert _labelled(two) == _labelled(one)
+    assert len(list((tmp_path / "two").glob("*recovering*.npz"))) == 2  # both variants were fitted
+    assert not list((tmp_path / "two").glob("*.claim"))

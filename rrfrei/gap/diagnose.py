@@ -114,9 +114,21 @@ VARIANT_TRACE = 0.05
 """Least systematic-gap shrink of an effect's primary fit for its variants to be tried."""
 
 
+def _variant_names(model: GapModel, sc: _Scorer, score: EffectScore) -> tuple[str, ...]:
+    """The variants of ``score``'s effect that :func:`_variant_or_primary` tries (its docstring)."""
+    names = model.variants(score.effect)
+    trace = score.shrink_holdout if sc.holdout else score.shrink_calibration
+    if not score.significant and math.isfinite(trace) and trace < VARIANT_TRACE:
+        # a wider shape of a kernel that closes nothing is not tried; a variant that changes
+        # what the model simulates (the building's runs from the virgin state) still is
+        names = tuple(v for v in names if not model.shape_variant(score.effect, v))
+    return names
+
+
 def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: str, fit: FitResult,
                         score: EffectScore, data, budget: TimeBudget, seed: int, starts, base: FitResult,
-                        screen: float, bm, notes: list[str]) -> tuple[FitResult, EffectScore]:
+                        screen: float, bm, notes: list[str], shared: SharedRefits | None = None,
+                        workers: int = 1) -> tuple[FitResult, EffectScore]:
     """The fit that stands for ``effect``: the primary one, or a variant of the effect
     (:class:`rrfrei.laws.effects.Variant`) that beats it by the block rule of
     :mod:`rrfrei.gap.decision` (the rank test of the per-block squared-error reductions over the
@@ -136,13 +148,9 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
     case).  A variant that changes what the model simulates rather than the kernel's shape
     (:meth:`rrfrei.gap.model.GapModel.shape_variant` false: the building's runs each from the
     virgin state) is tried whatever the primary fit's trace: the primary fit's failure is what it
-    may explain."""
-    names = model.variants(effect)
-    trace = score.shrink_holdout if sc.holdout else score.shrink_calibration
-    if not score.significant and math.isfinite(trace) and trace < VARIANT_TRACE:
-        # a wider shape of a kernel that closes nothing is not tried; a variant that changes
-        # what the model simulates (the building's runs from the virgin state) still is
-        names = tuple(v for v in names if not model.shape_variant(effect, v))
+    may explain.  ``shared``: the variants' fits shared with a second process (each variant fit
+    claimed there first)."""
+    names = _variant_names(model, sc, score)
     if not names:
         return fit, score
     best_fit, best = fit, score
@@ -152,9 +160,13 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
             break
         step = f"refit of {model.name}+{effect} ({v})"
         try:
-            vfit = _fit_or_restore(ck, f"{effect_step(effect)}:{v}",
-                                   model.augment([effect], variants={effect: v}), data, budget, seed=seed,
-                                   start=starts)
+            key = f"{effect_step(effect)}:{v}"
+            helped = shared is not None and shared.acquire(key)
+            with sharing(1 if shared is not None and shared.proc is not None else workers):
+                vfit = _fit_or_restore(ck, key, model.augment([effect], variants={effect: v}), data, budget,
+                                       seed=seed, start=starts)
+            if helped and key in ck.reused:
+                ck.reused.remove(key)
             step = f"scoring of {vfit.name} ({v})"
             if not _beats(sc, vfit, fit):
                 continue
@@ -367,15 +379,25 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                 notes.append(f"{len(shared.helped)} of the candidates' refits ran in a second process")
             shared.close()
         # the variants once every effect has its primary fit, so that a time budget spent on them
-        # never leaves an effect unevaluated
-        for i, score in enumerate(scores):
-            if not model.variants(score.effect):
-                continue
-            bar.set_postfix_str(f"variants of {score.effect}")
-            fit, scores[i] = _variant_or_primary(model, sc, ck, score.effect, fits[score.law], score, data,
-                                                 budget, seed, starts, base,
-                                                 screens.get(score.effect, float("nan")), bm, notes)
-            fits[fit.name] = fit
+        # never leaves an effect unevaluated; their fits are independent, so a second process
+        # makes them from the end of the list
+        vjobs = [(f"{effect_step(s.effect)}:{v}", model.augment([s.effect], variants={s.effect: v}))
+                 for s in scores for v in _variant_names(model, sc, s)]
+        vshared = SharedRefits(ck, vjobs, data, starts, seed, budget, workers)
+        try:
+            for i, score in enumerate(scores):
+                if not model.variants(score.effect):
+                    continue
+                bar.set_postfix_str(f"variants of {score.effect}")
+                fit, scores[i] = _variant_or_primary(model, sc, ck, score.effect, fits[score.law], score,
+                                                     data, budget, seed, starts, base,
+                                                     screens.get(score.effect, float("nan")), bm, notes,
+                                                     shared=vshared, workers=workers)
+                fits[fit.name] = fit
+        finally:
+            if vshared.helped:
+                notes.append(f"{len(vshared.helped)} of the variants' fits ran in a second process")
+            vshared.close()
         chosen = {s.effect: s.variant for s in scores if s.variant}  # effect -> the variant standing for it
         ranking = tuple(sorted(scores, key=lambda s: -_gain(sc, s) if math.isfinite(_gain(sc, s))
                                else math.inf))
