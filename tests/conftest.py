@@ -37,12 +37,14 @@ def truth():
 # Scheduling hint for pytest-xdist (pyproject: ``--dist loadfile --no-loadscope-reorder``): these
 # modules start first, longest first (measured with --durations), so that the long ones run beside
 # the many short ones instead of one of them starting last and running alone on one core (the slow
-# tier's full gap-validation table alone is ~11 min on 2 cores).  The other modules keep their
-# collection order.  Only the order changes, never a result.  The default tier starts on an empty
-# kernel cache: its list holds no module with a wall-clock budget (a shake-table fit within 120 s
-# fails there when it compiles its kernels on a loaded machine), those run later, on a warm cache.
+# tier's two shake-table validation cases, one file each, start at once on the two workers).  The
+# other modules keep their collection order.  Only the order changes, never a result.  The
+# default tier starts on an empty kernel cache: its list holds no module with a wall-clock budget
+# (a shake-table fit within 120 s fails there when it compiles its kernels on a loaded machine),
+# those run later, on a warm cache.
 FIRST_SLOW = (
-    "test_gap_validate.py", "test_shake_table_validation.py", "test_calibration_coverage.py",
+    "test_shake_table_validation.py", "test_shake_table_validation_stiffening.py", "test_gap_validate.py",
+    "test_calibration_coverage.py",
     "test_rubber_robust.py", "test_rubber_gap_engine.py", "test_rubber_fit.py", "test_demo.py",
     "test_propagate.py",
 )
