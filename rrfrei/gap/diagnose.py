@@ -125,10 +125,9 @@ def _variant_names(model: GapModel, sc: _Scorer, score: EffectScore) -> tuple[st
     return names
 
 
-def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: str, fit: FitResult,
-                        score: EffectScore, data, budget: TimeBudget, seed: int, starts, base: FitResult,
-                        screen: float, bm, notes: list[str], shared: SharedRefits | None = None,
-                        workers: int = 1) -> tuple[FitResult, EffectScore]:
+def _variant_or_primary(model: GapModel, sc: _Scorer, effect: str, fit: FitResult, score: EffectScore,
+                        budget: TimeBudget, base: FitResult, screen: float, bm, notes: list[str],
+                        shared: SharedRefits, workers: int) -> tuple[FitResult, EffectScore]:
     """The fit that stands for ``effect``: the primary one, or a variant of the effect
     (:class:`rrfrei.laws.effects.Variant`) that beats it by the block rule of
     :mod:`rrfrei.gap.decision` (the rank test of the per-block squared-error reductions over the
@@ -148,8 +147,8 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
     case).  A variant that changes what the model simulates rather than the kernel's shape
     (:meth:`rrfrei.gap.model.GapModel.shape_variant` false: the building's runs each from the
     virgin state) is tried whatever the primary fit's trace: the primary fit's failure is what it
-    may explain.  ``shared``: the variants' fits shared with a second process (each variant fit
-    claimed there first)."""
+    may explain.  ``shared``: where the variants' fits are made (:meth:`SharedRefits.fit`: here, or
+    by a second process)."""
     names = _variant_names(model, sc, score)
     if not names:
         return fit, score
@@ -160,13 +159,8 @@ def _variant_or_primary(model: GapModel, sc: _Scorer, ck: _Checkpoint, effect: s
             break
         step = f"refit of {model.name}+{effect} ({v})"
         try:
-            key = f"{effect_step(effect)}:{v}"
-            helped = shared is not None and shared.acquire(key)
-            with sharing(1 if shared is not None and shared.proc is not None else workers):
-                vfit = _fit_or_restore(ck, key, model.augment([effect], variants={effect: v}), data, budget,
-                                       seed=seed, start=starts)
-            if helped and key in ck.reused:
-                ck.reused.remove(key)
+            vfit = shared.fit(f"{effect_step(effect)}:{v}", model.augment([effect], variants={effect: v}),
+                              workers)
             step = f"scoring of {vfit.name} ({v})"
             if not _beats(sc, vfit, fit):
                 continue
@@ -356,13 +350,7 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                     shared = SharedRefits(ck, [(effect_step(r), model.augment([r])) for r in rest
                                                if not model.cannot_judge(r, data)],
                                           data, starts, seed, budget, workers)
-                # made by the other process: not a reuse of an earlier run's
-                helped = shared.acquire(effect_step(e))
-                aug = model.augment([e])
-                with sharing(1 if shared.proc is not None else workers):
-                    fit = _fit_or_restore(ck, effect_step(e), aug, data, budget, seed=seed, start=starts)
-                if helped and effect_step(e) in ck.reused:
-                    ck.reused.remove(effect_step(e))
+                fit = shared.fit(effect_step(e), model.augment([e]), workers)
                 bar.set_postfix_str(f"score +{e}")
                 step = f"scoring of {fit.name}"
                 score = _score(sc, e, fit, base, screens.get(e, float("nan")), bm)
@@ -389,10 +377,9 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                 if not model.variants(score.effect):
                     continue
                 bar.set_postfix_str(f"variants of {score.effect}")
-                fit, scores[i] = _variant_or_primary(model, sc, ck, score.effect, fits[score.law], score,
-                                                     data, budget, seed, starts, base,
-                                                     screens.get(score.effect, float("nan")), bm, notes,
-                                                     shared=vshared, workers=workers)
+                fit, scores[i] = _variant_or_primary(model, sc, score.effect, fits[score.law], score,
+                                                     budget, base, screens.get(score.effect, float("nan")),
+                                                     bm, notes, vshared, workers)
                 fits[fit.name] = fit
         finally:
             if vshared.helped:
@@ -503,11 +490,7 @@ def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBu
                 bar.set_postfix_str(f"combine +{e}")
                 key, step_model = jobs[e]
                 try:
-                    helped = shared.acquire(key)
-                    with sharing(1 if shared.proc is not None else workers):
-                        fit = _fit_or_restore(ck, key, step_model, data, budget, seed=seed, start=current)
-                    if helped and key in ck.reused:
-                        ck.reused.remove(key)
+                    fit = shared.fit(key, step_model, workers)
                     cand.append((replace(_score(sc, e, fit, current, screens.get(e, float("nan")),
                                                 final), variant=chosen.get(e, "")), fit))
                     fits[fit.name] = fit

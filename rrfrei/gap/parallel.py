@@ -123,6 +123,19 @@ class SharedRefits:
             return True
         return False
 
+    def fit(self, step: str, model, workers: int):
+        """The fit of checkpoint ``step`` (``model`` from the starts): restored when the other
+        process made it (:meth:`acquire`), else made here, over ``workers`` processes when no
+        second process runs and in this one alone while it does.  A fit the other process made is
+        not counted as a reuse of an earlier run's."""
+        helped = self.acquire(step)
+        with sharing(1 if self.proc is not None else workers):
+            fit = _fit_or_restore(self.ck, step, model, self.data, self.budget, seed=self.seed,
+                                  start=self.starts)
+        if helped and step in self.ck.reused:
+            self.ck.reused.remove(step)
+        return fit
+
     def close(self) -> None:
         """End the other process (its remaining claims are fitted by nobody: the loop is done)."""
         if self.proc is None:
