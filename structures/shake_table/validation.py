@@ -58,8 +58,8 @@ of its force at the end of the calibration runs and about half at the end of the
 the upper range of what elastomeric and lead-rubber bearings lose under long motions; at 1.0 (set
 for 20 s runs) it kept 11 % after calibration and under 1 % after the held-out run, a failed
 isolation layer rather than a degrading one.  ``recovering_softening`` at 0.4: the layer is up to
-40 % softer after its largest excursions in each run (tanh(|x_0| / 0.06 m): 0.81 of it at the
-last calibration run's peak, 0.94 at the held-out run's) and starts every run recovered."""
+40 % softer after its largest excursions in each run (tanh(|x_0| / 0.06 m): about 0.8 of it at the
+largest calibration run's peak, 0.94 at the held-out run's) and starts every run recovered."""
 
 ACCEPTED = {
     "none": frozenset(),
