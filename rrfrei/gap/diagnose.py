@@ -33,7 +33,12 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    baseline fitted to the first half of the test only (before late effects set in).
    Without held-out data on such a protocol the winner must also
    beat every other significant effect in a leave-one-block-out comparison by the same block
-   test; else the diagnosis is ``none`` and the report names the tied effects;
+   test; else the diagnosis is ``none`` and the report names the tied effects.  With held-out
+   data, the effects the held-out blocks cannot tell from the named one are its *alternatives*
+   (:func:`_alternatives`): their refits pass the rule's rank tests and neither predicts the
+   held-out blocks better than the other by more than one standard error, so the report says the
+   data support them as well (two velocity-dependent forces, say) instead of silently naming the
+   one a rounding put first;
 5. greedy combination: add the best further effect (refit from the current combination) while
    it stays significant against the current combination by the same rule.  The effects tried are
    the significant ones; for a model whose effects act on each other's evidence
@@ -49,7 +54,7 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    residuals' lag-1 autocorrelation); else ``"unexplained"`` (evidence: the top three segments of
    ``where``, the systematic gap's size, the closest candidate with its shrink and why it was
    rejected, tied effects); ``"incomplete"`` when effects were not evaluated.  Evidence keys:
-   ``rule``, ``baseline``, ``tied``, ``closest``, and ``named``/``left``/``left_is_noise``,
+   ``rule``, ``baseline``, ``tied``, ``alternatives``, ``closest``, and ``named``/``left``/``left_is_noise``,
    ``reasons``/``systematic_on``, ``where``/``size``, ``not_evaluated`` by verdict.
 
 Robustness, time and restarts (issue 16.4):
@@ -392,6 +397,7 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
         diagnosis, tied = _name(sc, fits, sig, data, notes)
         combination: list[str] = []
         steps: list[EffectScore] = []
+        alternatives: list = []
         final, current, stopped = bm, base, False
         if diagnosis != "none":
             first = next(s for s in ranking if s.effect == diagnosis)
@@ -399,11 +405,12 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                 model, sc, ck, data, budget, seed, bar, notes, first=first, sig=sig, chosen=chosen, fits=fits,
                 screens=screens, combine=combine, max_combination=max_combination, ranking=ranking,
                 workers=workers)
+            alternatives = _alternatives(sc, fits, ranking, diagnosis, base, combination)
     diagnosis, missing, budget_message = _closing_notes(diagnosis, effects, skipped, untried, stopped,
                                                         ranking, budget, fits, ck, notes)
     try:
         verdict, evidence = _verdict(sc, diagnosis, combination, base, current, ranking, steps, where,
-                                     tied, missing)
+                                     tied, missing, alternatives)
     except NUMERICAL_ERRORS as exc:  # the verdict's numbers come from fits already scored
         verdict, evidence = diagnosis, {"error": _failure("verdict", exc)}
     return GapReport(law=model.name, diagnosis=diagnosis, combination=tuple(combination), where=where,
@@ -449,6 +456,36 @@ def _consistent(s: EffectScore) -> bool:
     ev, ho = s.blocks_calibration, s.blocks_holdout
     return (ev is not None and ev.total > MIN_GAIN and ev.passes()
             and (ho is None or ho.passes()))
+
+
+def _alternatives(sc: _Scorer, fits: dict, ranking: Sequence[EffectScore], named: str, base: FitResult,
+                  combination: Sequence[str] = ()) -> list[tuple[EffectScore, dec.GapDifference]]:
+    """The effects the held-out data cannot tell from the ``named`` one (ranking order), each with
+    how much more of the baseline's held-out systematic gap it leaves than the named effect's refit
+    (:func:`rrfrei.gap.decision.gap_difference_ci`, paired block bootstrap): an effect is listed
+    when its refit passes the rule's rank tests (:func:`_consistent`), it is not in the
+    ``combination``, and the interval of that difference reaches zero or below (the held-out
+    blocks do not show the named effect to predict better).  Sizes, not signs: between two effects
+    that both pass against the baseline, the strong-motion windows carry the difference while the
+    quiet ones flip coins, so a rank test would call a 48 % and a 13 % shrink a tie (the reading of
+    :func:`rrfrei.gap.scoring._parsimonious`).  Empty without held-out data (the confounding guard
+    of :func:`_name` reads ties there) or without a named effect.
+    """
+    first = next((s for s in ranking if s.effect == named), None)
+    if not sc.holdout or first is None or first.law not in fits:
+        return []
+    a = fits[first.law]
+    out = []
+    for s in ranking:
+        if s.effect == named or s.effect in combination or s.law not in fits or not _consistent(s):
+            continue
+        try:
+            ev = dec.gap_difference_ci(sc.parts(a, base), sc.parts(fits[s.law], base), seed=sc.seed)
+        except NUMERICAL_ERRORS:
+            continue
+        if ev.lower <= 0.0:
+            out.append((s, ev))
+    return out
 
 
 def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBudget, seed: int, bar,

@@ -91,8 +91,11 @@ def _named(rep: GapReport, s) -> str:
     if s.effect in rep.combination:
         return "yes" if s.effect == rep.combination[0] else "yes (combined)"
     if s.significant:
-        return "no (tied)" if s.effect in rep.evidence.get("tied", []) else "no (not combined)"
-    return "no"
+        if s.effect in rep.evidence.get("tied", []):
+            return "no (tied)"
+    if s.effect in {a["effect"] for a in rep.evidence.get("alternatives", [])}:
+        return "no (alternative)"
+    return "no (not combined)" if s.significant else "no"
 
 
 def _pct(x) -> str:
@@ -153,6 +156,18 @@ def verdict_text(rep: GapReport) -> str:
     if len(rep.combination) > 1:
         labels = {s.effect: s.label for s in rep.steps}
         txt += f"; combination `{'+'.join(labels.get(e, e) for e in rep.combination)}`"
+    alts = ev.get("alternatives", [])
+    if alts:
+        def vs(a):
+            d = a.get("against_named") or {}
+            lo, hi = d.get("ci", [None, None])
+            return (f"; leaves {_pct(d.get('difference'))} [{_pct(lo)}, {_pct(hi)}] more of the baseline's "
+                    "systematic gap than the named effect")
+
+        txt += ("; the held-out data support as well "
+                + ", ".join(f"`{a['label']}` (held-out shrink {_pct(a['shrink'])}{vs(a)})" for a in alts)
+                + " (the held-out blocks do not show the named effect to predict better): read the verdict "
+                  "as one of these")
     left = ev.get("left", {})
     if left:
         txt += (". What is left after it: " + "; ".join(f"{k}: {_left(d)}" for k, d in left.items())

@@ -5,6 +5,7 @@ numbers behind it."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import pandas as pd
 
@@ -29,8 +30,13 @@ def _residuals(sc: _Scorer, fit: FitResult) -> dict:
 
 def _verdict(sc: _Scorer, diagnosis: str, combination: list[str], base: FitResult, final: FitResult,
              ranking: tuple[EffectScore, ...], steps: list[EffectScore], where: pd.DataFrame,
-             tied: list[str], missing: dict[str, str]) -> tuple[str, dict]:
-    """The verdict and its evidence (see :func:`rrfrei.gap.diagnose.diagnose`)."""
+             tied: list[str], missing: dict[str, str],
+             alternatives: Sequence[tuple[EffectScore, dec.GapDifference]] = ()
+             ) -> tuple[str, dict]:
+    """The verdict and its evidence (see :func:`rrfrei.gap.diagnose.diagnose`); ``alternatives``:
+    the effects the held-out data cannot tell from the named one, each with how much more of the
+    baseline's held-out systematic gap it leaves than the named effect
+    (:func:`rrfrei.gap.diagnose._alternatives`)."""
     rule = ("an effect is named when its leave-one-block-out gains on the calibration test total > "
             f"{dec.MIN_GAIN:g} nats and pass a sign or Wilcoxon signed-rank test over blocks at "
             f"p < {dec.ALPHA / 2:g}" + (f", and on the held-out tests its per-block squared-error "
@@ -56,6 +62,9 @@ def _verdict(sc: _Scorer, diagnosis: str, combination: list[str], base: FitResul
         left = _residuals(sc, final)
         ev["named"] = {"effect": diagnosis, "combination": list(combination),
                        "steps": [{"effect": s.effect, **s.evidence()} for s in steps]}
+        ev["alternatives"] = [{"effect": s.effect, "label": s.label, "passes_rule": s.significant,
+                               "shrink": _num(key(s)), "shrink_ci": s.evidence()["shrink"],
+                               "against_named": vs.as_dict(), "why": s.why} for s, vs in alternatives]
         ev["left"] = {k: v.as_dict() for k, v in left.items()}
         ev["left_is_noise"] = all(v.noise_only for v in left.values())
         return diagnosis, ev

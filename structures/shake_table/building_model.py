@@ -158,7 +158,10 @@ class BuildingModel(GapModel):
     # --- identity -------------------------------------------------------------------------
     @property
     def name(self) -> str:  # type: ignore[override]
-        return "+".join([self.spec.name, *self.system]) + (f" ({RECOVERING})" if self.recover else "")
+        # the marker follows the isolator law it concerns (its memory effects), before the system
+        # effects: "bouc_wen+mullins (recovering)+isolation_damping"
+        law = self.spec.name + (f" ({RECOVERING})" if self.recover else "")
+        return "+".join([law, *self.system])
 
     @property
     def effects(self) -> tuple[str, ...]:
