@@ -273,6 +273,20 @@ def _too_few_blocks(sc: _Scorer) -> str:
             "longer or more runs")
 
 
+def _weak_calibration(sc: _Scorer) -> str:
+    """The note saying that the calibration data give too few blocks for the rank test to weigh an
+    effect (:func:`rrfrei.gap.decision.underpowered`), so that the held-out blocks decide; "" when
+    they give enough, or there are no held-out data, or too few for any test (:func:`_too_few_blocks`)."""
+    n_cal = int(np.unique(sc.g_cal).size)
+    if not sc.holdout or n_cal < dec.min_blocks() or not dec.underpowered(n_cal):
+        return ""
+    return (f"the calibration data give {n_cal} blocks, too few for the block rule's rank test to weigh an "
+            f"effect (it passes only when {dec.needed_gains(n_cal)} of {n_cal} gain): an effect whose "
+            f"calibration gain totals more than {dec.MIN_GAIN:g} nats with a majority of its blocks "
+            "gaining is judged on the held-out blocks; longer or more calibration runs make the "
+            "calibration evidence count")
+
+
 def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combine, max_combination,
               progress, time_budget, checkpoint, workers=1) -> GapReport:
     # a model may offer candidates of its own besides the catalogue's (the building's system effects)
@@ -291,6 +305,9 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
     few = _too_few_blocks(sc)
     if few and effects:
         notes.append(Note(few, "critical"))
+    weak = _weak_calibration(sc)
+    if weak and effects:
+        notes.append(Note(weak, "warning"))
     bar = progress_bar(1 + len(effects), f"gap {model.name}", enabled=progress, unit="step")
     # one fit at a time may spread its evaluations over the processes; while a second process
     # fits candidates of its own, each fit keeps to one (rrfrei.forkmap)
@@ -454,7 +471,7 @@ def _consistent(s: EffectScore) -> bool:
     ``MIN_GAIN`` nats with the calibration blocks' test, and the held-out blocks' test when there
     are held-out data (whatever its shrink)."""
     ev, ho = s.blocks_calibration, s.blocks_holdout
-    return (ev is not None and ev.total > MIN_GAIN and ev.passes()
+    return (ev is not None and ev.total > MIN_GAIN and dec.calibration_support(ev, ho)[0]
             and (ho is None or ho.passes()))
 
 

@@ -39,7 +39,10 @@ def _verdict(sc: _Scorer, diagnosis: str, combination: list[str], base: FitResul
     (:func:`rrfrei.gap.diagnose._alternatives`)."""
     rule = ("an effect is named when its leave-one-block-out gains on the calibration test total > "
             f"{dec.MIN_GAIN:g} nats and pass a sign or Wilcoxon signed-rank test over blocks at "
-            f"p < {dec.ALPHA / 2:g}" + (f", and on the held-out tests its per-block squared-error "
+            f"p < {dec.ALPHA / 2:g}" + (" (with held-out tests and too few calibration blocks for that "
+                                         "test to weigh an effect, fewer than 15: a majority of them)"
+                                         if sc.holdout else "")
+            + (f", and on the held-out tests its per-block squared-error "
                                          f"reductions pass the same test and the block-bootstrap "
                                          f"{dec.LEVEL:.0%} interval of the held-out systematic-gap "
                                          f"shrink lies above {dec.MIN_SHRINK:.0%}" if sc.holdout else
