@@ -1,12 +1,15 @@
-"""The shake-table reading states the held-out peaks where a designer reads them: every channel's
-peak error, and an unconservative under-prediction called so, with the run's extrapolation when
-it lies beyond the calibrated range (structures.shake_table.report.peaks_text)."""
+"""The shake-table report puts what a designer must read first where it is read: the reader's
+warnings about the runs before the results (structures.shake_table.report.data_warnings), and
+the held-out peaks in the reading: every channel's peak error, and an unconservative
+under-prediction called so, with the run's extrapolation when it lies beyond the calibrated range
+(structures.shake_table.report.peaks_text)."""
 
 from __future__ import annotations
 
 from types import SimpleNamespace
 
-from structures.shake_table.report import PEAK_TOLERANCE, peaks_text
+from rrfrei.notes import Note
+from structures.shake_table.report import PEAK_TOLERANCE, data_warnings, peaks_text
 
 
 def _res(errors: dict, extrapolation: float) -> SimpleNamespace:
@@ -32,3 +35,13 @@ def test_peaks_within_the_tolerance_or_over_predicted_raise_no_warning():
 def test_an_unconservative_peak_within_the_calibrated_range_does_not_blame_extrapolation():
     txt = peaks_text(_res({"isolator_force": -0.2}, 0.8))
     assert "unconservative" in txt and "calibrated range" not in txt
+
+
+def test_the_readers_warnings_open_the_report_and_other_notes_stay_at_the_end():
+    notes = (Note("reading: run 'CNP100' (raw/CNP100): the levels look upside down", "warning"),
+             Note("6 of the candidates' refits ran in a second process", "info"))
+    lines = data_warnings(SimpleNamespace(notes=notes))
+    assert lines[0].startswith("**Check the data first.**")
+    assert "- run 'CNP100' (raw/CNP100): the levels look upside down" in lines
+    assert not any("second process" in ln for ln in lines)
+    assert data_warnings(SimpleNamespace(notes=notes[1:])) == []

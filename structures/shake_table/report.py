@@ -178,6 +178,18 @@ def reading(res: ShakeTableGap) -> str:
     return "\n\n".join(lines)
 
 
+def data_warnings(res: ShakeTableGap) -> list[str]:
+    """The report's opening lines when the readers warned about a run (levels upside down,
+    masses in the opposite order, inconsistent channels: notes ``"reading: ..."``): every number
+    of the report rests on the runs as read, so they go before the results, not among the notes
+    at the end.  Empty when the reader said nothing."""
+    data = [str(n)[len("reading: "):] for n in res.notes if str(n).startswith("reading: ")]
+    if not data:
+        return []
+    return ["**Check the data first.** The results below rest on the runs as read, and the reader "
+            "warned:", "", *[f"- {n}" for n in data], ""]
+
+
 PEAK_TOLERANCE = 0.10
 """Relative under-prediction of a held-out peak beyond which the reading calls it unconservative."""
 
@@ -219,8 +231,8 @@ def write_report(res: ShakeTableGap, out: str | Path) -> Path:
         fig.savefig(out / name, dpi=100)
     rep = res.report
     held = ", ".join(res.holdout) or "(no held-out run)"
-    parts = [f"# Shake-table gap: {', '.join(res.calibrate)} -> {held}",
-             "", reading(res), "",
+    parts = [f"# Shake-table gap: {', '.join(res.calibrate)} -> {held}", "", *data_warnings(res),
+             reading(res), "",
              "## Gap per channel (NRMSE of the posterior median)", "",
              _md(gap_table(res), pct=("calibration before", "calibration after", "held out before",
                                       "held out after", "shrink", "coverage (predictive)",
