@@ -19,7 +19,8 @@ class _Stop(Exception):
 
 @pytest.fixture(scope="module")
 def runs_100hz():
-    return synthetic_sequence(SyntheticBuilding(), (0.5, 0.9), seed=0, duration=12.0, tail_s=0.0, rate_hz=100.0)
+    return synthetic_sequence(SyntheticBuilding(), (0.5, 0.9), seed=0, duration=12.0, tail_s=0.0,
+                              rate_hz=100.0)
 
 
 def _runs_seen(monkeypatch, runs, **kw):
