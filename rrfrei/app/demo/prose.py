@@ -275,8 +275,9 @@ def orbit_reading(ans: Any, pair: str) -> str:
     )
 
 
-def shake_table_reading(res: Any, *, quick: bool) -> str:
-    """Step 7: the real building: extrapolation, diagnosis with its evidence, gap before and after."""
+def shake_table_reading(res: Any, *, quick: bool, budget_s: float | None = None) -> str:
+    """Step 7: the real building: extrapolation, diagnosis with its evidence, gap before and after,
+    the held-out peaks (an unconservative one called so); ``budget_s``: the step's time budget [s]."""
     rep = res.report
     ratio = max(res.extrapolation.values()) if res.extrapolation else float("nan")
     text = (
@@ -298,9 +299,13 @@ def shake_table_reading(res: Any, *, quick: bool) -> str:
         if not sh >= 0.5:
             text += (" The goal is not met: beyond the calibrated range the law follows its form, not data, "
                      "and the model drifts out of phase with the measurement over the long record.")
+        from structures.shake_table.report import peaks_text  # the shake-table report's own sentence
+
+        text += " " + peaks_text(res)
     if quick:
         text += (" QUICK run: one calibration run, a closed-form law, four effects (rate, mullins, "
-                 "scragging, stiffening) and a 60 s budget.")
+                 "scragging, stiffening)"
+                 + (f" and a {budget_s:g} s budget." if budget_s is not None else "."))
     return text
 
 

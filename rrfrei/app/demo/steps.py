@@ -414,7 +414,7 @@ def step_shake_table(ctx: DemoContext, sec: Section) -> None:
                       "range, frequency band and time window (the worst five 10 s windows).")
     for name, fig in shake_table_figures(res).items():
         sec.add_figure(name.removesuffix(".png"), fig)
-    sec.reading = prose.shake_table_reading(res, quick=s.quick)
+    sec.reading = prose.shake_table_reading(res, quick=s.quick, budget_s=s.shake_budget_s)
     for note in res.notes:
         sec.notes.append(note)
 
