@@ -164,6 +164,22 @@ def test_bouc_wen_local_newton_failure_matches_opensees(ops):
     assert fail == fail_os == 2
 
 
+def test_bouc_wen_from_rest_with_eta_below_one_fails_as_opensees_3d_where_the_1d_law_converges(ops):
+    """With eta < 1 the 3-D residual's term z |z|^(eta - 2) (z du) has a singular Jacobian at z = 0:
+    OpenSees' 3-D element reports its local Newton failed on the first step from rest along one
+    axis, and the plan law fails there too, while the 1-D law (the 2-D element's residual
+    (du/u_y)(A - |z|^eta s)) converges.  Found by hypothesis in
+    tests/test_plan_laws_physics.py::test_bouc_wen_along_one_axis_is_the_unidirectional_law."""
+    p = {"k_init": 21.69573086215917, "qd": 1.0, "alpha1": 0.515625, "alpha2": 0.0, "mu": 1.0,
+         "eta": 0.25, "beta": 0.5078125, "gamma": 2.0}
+    disp = np.array([[0.0, 0.0], [-0.03125, 0.0]])
+    _, fail = rrfrei_force_and_failure("bouc_wen", p, disp)
+    _, _, fail_os = element_force_and_failure(ops, "bouc_wen", p, disp)
+    assert fail == fail_os == 1
+    f1 = rrfrei.simulate_force("bouc_wen", p, disp[:, 0])
+    assert np.all(np.isfinite(f1))
+
+
 def test_bouc_wen_step_onto_a_spurious_root_is_where_the_comparison_stops(ops):
     """One step drives z from 0 to 2633 (eta 0.375): a root of the backward-Euler equation far
     beyond the bound |z| <= (beta + gamma)^(-1/eta) = 0.19, where a physical step cannot go.

@@ -274,6 +274,10 @@ def test_bouc_wen_along_one_axis_is_the_unidirectional_law(p, u, axis, sign):
         f1 = rrfrei.simulate_force("bouc_wen", p, sign * u)
     except NumericalFailure as exc:
         fail1 = str(exc).split("failed at sample ")[1].split()[0]
+    # eta < 1: the 3-D residual's Jacobian is singular at z = 0, and OpenSees' 3-D Newton fails
+    # where the 1-D one converges; the plan law fails with the 3-D element (pinned to openseespy
+    # in tests/test_plan_laws_opensees.py, ..._fails_as_opensees_3d_where_the_1d_law_converges)
+    assume(not (p["eta"] < 1.0 and fail != -1 and fail1 == -1))
     assert fail == fail1
     if f is not None:
         assert np.all(f[:, 1 - axis] == 0.0)

@@ -17,6 +17,7 @@ from rrfrei.app.demo.context import SYNTHETIC
 from rrfrei.app.report import fmt
 from rrfrei.calibration.sampler import CONVERGENCE_RULE
 from rrfrei.gap.report import verdict_text
+from structures.shake_table.report import peaks_text
 
 
 def pct(x: float) -> str:
@@ -299,9 +300,7 @@ def shake_table_reading(res: Any, *, quick: bool, budget_s: float | None = None)
         if not sh >= 0.5:
             text += (" The goal is not met: beyond the calibrated range the law follows its form, not data, "
                      "and the model drifts out of phase with the measurement over the long record.")
-        from structures.shake_table.report import peaks_text  # the shake-table report's own sentence
-
-        text += " " + peaks_text(res)
+        text += " " + peaks_text(res)  # the shake-table report's own sentence
     if quick:
         text += (" QUICK run: one calibration run, a closed-form law, four effects (rate, mullins, "
                  "scragging, stiffening)"
