@@ -35,10 +35,10 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    beat every other significant effect in a leave-one-block-out comparison by the same block
    test; else the diagnosis is ``none`` and the report names the tied effects.  With held-out
    data, the effects the held-out blocks cannot tell from the named one are its *alternatives*
-   (:func:`_alternatives`): their refits pass the rule's rank tests and neither predicts the
-   held-out blocks better than the other by more than one standard error, so the report says the
-   data support them as well (two velocity-dependent forces, say) instead of silently naming the
-   one a rounding put first;
+   (:func:`_alternatives`): their refits pass the rule's rank tests and the paired block
+   bootstrap does not show them to leave more of the baseline's held-out gap than the named
+   effect, so the report says the data support them as well (two velocity-dependent forces, say)
+   instead of silently naming the one a rounding put first;
 5. greedy combination: add the best further effect (refit from the current combination) while
    it stays significant against the current combination by the same rule.  The effects tried are
    the significant ones; for a model whose effects act on each other's evidence
@@ -422,7 +422,7 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
                 model, sc, ck, data, budget, seed, bar, notes, first=first, sig=sig, chosen=chosen, fits=fits,
                 screens=screens, combine=combine, max_combination=max_combination, ranking=ranking,
                 workers=workers)
-            alternatives = _alternatives(sc, fits, ranking, diagnosis, base, combination)
+            alternatives = _alternatives(sc, fits, ranking, first, base, combination)
     diagnosis, missing, budget_message = _closing_notes(diagnosis, effects, skipped, untried, stopped,
                                                         ranking, budget, fits, ck, notes)
     try:
@@ -475,9 +475,10 @@ def _consistent(s: EffectScore) -> bool:
             and (ho is None or ho.passes()))
 
 
-def _alternatives(sc: _Scorer, fits: dict, ranking: Sequence[EffectScore], named: str, base: FitResult,
-                  combination: Sequence[str] = ()) -> list[tuple[EffectScore, dec.GapDifference]]:
-    """The effects the held-out data cannot tell from the ``named`` one (ranking order), each with
+def _alternatives(sc: _Scorer, fits: dict, ranking: Sequence[EffectScore], first: EffectScore,
+                  base: FitResult, combination: Sequence[str] = ()
+                  ) -> list[tuple[EffectScore, dec.GapDifference]]:
+    """The effects the held-out data cannot tell from the named one ``first`` (ranking order), each with
     how much more of the baseline's held-out systematic gap it leaves than the named effect's refit
     (:func:`rrfrei.gap.decision.gap_difference_ci`, paired block bootstrap): an effect is listed
     when its refit passes the rule's rank tests (:func:`_consistent`), it is not in the
@@ -488,16 +489,15 @@ def _alternatives(sc: _Scorer, fits: dict, ranking: Sequence[EffectScore], named
     :func:`rrfrei.gap.scoring._parsimonious`).  Empty without held-out data (the confounding guard
     of :func:`_name` reads ties there) or without a named effect.
     """
-    first = next((s for s in ranking if s.effect == named), None)
-    if not sc.holdout or first is None or first.law not in fits:
+    if not sc.holdout or first.law not in fits:
         return []
-    a = fits[first.law]
+    named = sc.parts(fits[first.law], base)  # the named effect's blocks, shared by every comparison
     out = []
     for s in ranking:
-        if s.effect == named or s.effect in combination or s.law not in fits or not _consistent(s):
+        if s.effect == first.effect or s.effect in combination or s.law not in fits or not _consistent(s):
             continue
         try:
-            ev = dec.gap_difference_ci(sc.parts(a, base), sc.parts(fits[s.law], base), seed=sc.seed)
+            ev = dec.gap_difference_ci(named, sc.parts(fits[s.law], base), seed=sc.seed)
         except NUMERICAL_ERRORS:
             continue
         if ev.lower <= 0.0:

@@ -212,10 +212,11 @@ def peaks_text(res: ShakeTableGap) -> str:
         names = ", ".join(f"{_PEAK_WORDS[c]} ({h})" for h, c, _ in low)
         txt += (f"  Under-predicted by more than {100 * PEAK_TOLERANCE:.0f} %: {names}; a design value read "
                 "from them would be unconservative")
-        ext = {h: res.extrapolation.get(h, 1.0) for h, _, _ in low}
-        far = [f"{h} at {r:.2f} x the calibrated displacement" for h, r in ext.items() if r > 1]
+        runs = dict.fromkeys(h for h, _, _ in low)  # each run once, in order
+        far = [f"{h} at {res.extrapolation.get(h, 1.0):.2f} x the calibrated displacement" for h in runs
+               if res.extrapolation.get(h, 1.0) > 1]
         if far:
-            txt += (f" ({', '.join(dict.fromkeys(far))}: beyond the calibrated range the model's force "
+            txt += (f" ({', '.join(far)}: beyond the calibrated range the model's force "
                     "follows the law's form, not a measurement; calibrate on a run that reaches the "
                     "design displacement)")
         txt += "."
