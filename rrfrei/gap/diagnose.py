@@ -46,7 +46,15 @@ Engine (:func:`diagnose`, generic over :class:`rrfrei.gap.model.GapModel`):
    a missing damping puts the simulated motion out of phase and so hides what a stiffness effect
    would close) also every effect whose refit passes the rule's rank tests (the calibration gain
    and blocks, and the held-out blocks) and misses only its shrink bound: its gains are
-   consistent but alone too small, as an effect's are when a missing partner masks them;
+   consistent but alone too small, as an effect's are when a missing partner masks them.  For
+   such a model an effect with a variant that changes what is simulated (a history effect of the
+   building, carried from run to run or recovering between runs) is tried in every form at each
+   step, whatever its gains alone (:func:`_forms`): which form stood for it was read against the
+   baseline, whose missing effects distort that reading as they distort the gain.  And such a
+   model's named effect is also fitted from scratch (the baseline's search): when that fits the
+   calibration data better than the refit, which started in the basin of a baseline the missing
+   effect had shaped, it stands for the effect's building and the combination starts from it
+   (:func:`_from_scratch`; the effect stays named on its refit's evidence);
 6. verdict (``GapReport.verdict``, ``GapReport.evidence``): the named effect (evidence: its block
    tests, shrink interval, and what is left after it); else ``"none"`` when what is left of the
    baseline is noise on the calibration and the held-out data (systematic part within the noise or
@@ -76,7 +84,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -418,11 +426,15 @@ def _diagnose(model: GapModel, data, holdout: Sequence, *, effects, seed, combin
         final, current, stopped = bm, base, False
         if diagnosis != "none":
             first = next(s for s in ranking if s.effect == diagnosis)
+            refit = fits.get(first.law)
+            scratch = (_from_scratch(model, sc, ck, data, budget, seed, first, fits, notes)
+                       if model.interacting_effects else None)
             combination, steps, final, current, stopped = _combine(
                 model, sc, ck, data, budget, seed, bar, notes, first=first, sig=sig, chosen=chosen, fits=fits,
                 screens=screens, combine=combine, max_combination=max_combination, ranking=ranking,
-                workers=workers)
-            alternatives = _alternatives(sc, fits, ranking, first, base, combination)
+                workers=workers, scratch=scratch)
+            # the alternatives weigh the evidence the effect was named on: its refit's
+            alternatives = _alternatives(sc, {**fits, first.law: refit}, ranking, first, base, combination)
     diagnosis, missing, budget_message = _closing_notes(diagnosis, effects, skipped, untried, stopped,
                                                         ranking, budget, fits, ck, notes)
     try:
@@ -505,48 +517,121 @@ def _alternatives(sc: _Scorer, fits: dict, ranking: Sequence[EffectScore], first
     return out
 
 
+def _from_scratch(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBudget, seed: int,
+                  first: EffectScore, fits: dict, notes: list) -> FitResult | None:
+    """The named effect's model fitted from scratch (the search the baseline had, ``start=None``),
+    when it fits the calibration data better than the effect's refit (total leave-one-block-out
+    elpd); else None.  For a model whose effects interact, that fit then stands for the named
+    effect's building: the combination starts from it and is judged against it, and it is the
+    final model when nothing is added (:func:`_combine`).
+
+    The refit started from the baseline's optimum, which the missing effect shaped: on the BNCS
+    building a baseline without the isolation layer's damping can end in a basin of the Bouc-Wen
+    parameters from which the damped building's refits do not leave, and every combination step
+    would inherit it.  The effect is named on its refit's evidence (the rule passed on it, and
+    ``steps[0]`` and the alternatives keep it); which parameters stand for it is the calibration
+    data's choice, the held-out data not consulted.  A fit that fails or that the time budget
+    stops is left out, with a note.
+    """
+    fit = fits.get(first.law)
+    if fit is None:
+        return None
+    step = f"scratch-{effect_step(first.effect)}" + (f":{first.variant}" if first.variant else "")
+    try:
+        named = (model.augment([first.effect], variants={first.effect: first.variant}) if first.variant
+                 else model.augment([first.effect]))
+        alt = _fit_or_restore(ck, step, named, data, budget, seed=seed)
+        gain = float(np.sum(sc.loco(alt, blocks=False)) - np.sum(sc.loco(fit, blocks=False)))
+    except BudgetExceeded:
+        notes.append(f"{first.law} was not fitted from scratch: time budget (the combination starts "
+                     "from its refit alone)")
+        return None
+    except NUMERICAL_ERRORS as exc:
+        notes.append(f"{first.law} was not fitted from scratch: {_failure(f'fit of {first.law}', exc)}")
+        return None
+    if not gain > 0.0:
+        return None
+    notes.append(f"{first.law} fitted from scratch (the baseline's search) fits the calibration data "
+                 f"better than its refit from the baseline (+{gain:.1f} nats leave-one-block-out): it "
+                 f"stands for {first.effect}'s building (the combination starts from it; the effect was "
+                 "named on its refit's evidence)")
+    return alt
+
+
+def _forms(model: GapModel, pool: Sequence[str], chosen: Mapping[str, str]) -> list[tuple[str, str]]:
+    """The (effect, variant) refits of a combination step: each pooled effect in the form that stood
+    for it alone (``chosen``; "" the primary form); for a model whose effects interact
+    (:attr:`rrfrei.gap.model.GapModel.interacting_effects`), an effect with variants that change what
+    is simulated (the building's runs from the virgin state) also in its other forms.  Which form
+    stands for a history effect was decided against the baseline, whose missing effects distort the
+    simulated motion as they distort the effect's gain (the reason the pool holds such effects):
+    the recovery between runs is read again against the combination it would join."""
+    out = []
+    for e in pool:
+        alone = chosen.get(e, "")
+        out.append((e, alone))
+        if model.interacting_effects:
+            out += [(e, v) for v in ("", *model.variants(e))
+                    if v != alone and (not v or not model.shape_variant(e, v))]
+    return out
+
+
 def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBudget, seed: int, bar,
              notes: list, *, first: EffectScore, sig: list[EffectScore], chosen: dict, fits: dict,
              screens: dict, combine: bool, max_combination: int, ranking: Sequence[EffectScore] = (),
-             workers: int = 1):
+             workers: int = 1, scratch: FitResult | None = None):
     """Greedy combination from the named effect ``first`` (step 5 of the module docstring): add the
     best further significant effect, refitted from the current combination, while it stays
     significant against it.  A step's refits are independent (each from the current combination),
     so a forked second process makes them from the end of the pool while this one works from the
-    front (:class:`rrfrei.gap.parallel.SharedRefits`, ``workers``).  Returns (combination, steps,
-    final metrics, current fit, stopped by the time budget)."""
+    front (:class:`rrfrei.gap.parallel.SharedRefits`, ``workers``).  ``scratch``: the named effect's
+    model fitted from scratch (:func:`_from_scratch`), which then stands for it (the first step's
+    start and reference, ``fits`` holding it under the model's name) while ``steps[0]`` keeps the
+    refit's evidence.  Returns (combination, steps, final metrics, current fit, stopped by the
+    time budget)."""
     diagnosis = first.effect
     combination: list[str] = [diagnosis]
     steps: list[EffectScore] = [first]
     final = (first.calibration, first.holdout)
     current = fits[first.law]
+    if scratch is not None:
+        try:
+            final = (sc.metrics(scratch, [sc.cal]), sc.metrics(scratch, sc.holdout))
+            current = fits[first.law] = scratch
+        except NUMERICAL_ERRORS as exc:
+            notes.append(f"{first.law} fitted from scratch left out: {_failure('its scoring', exc)}")
     stopped = False  # the budget cut the combination search short
+    chosen = dict(chosen)
     pool = [s.effect for s in sig if s.effect != diagnosis]
     if model.interacting_effects:
         pool += [s.effect for s in ranking if s.effect != diagnosis and s.effect not in pool
-                 and _consistent(s)]
+                 and (_consistent(s) or model.variants(s.effect))]
     while combine and pool and len(combination) < max_combination and not stopped:
         cand = []
-        bar.total = (getattr(bar, "total", 0) or 0) + len(pool)
+        forms = _forms(model, pool, chosen)
+        bar.total = (getattr(bar, "total", 0) or 0) + len(forms)
         jobs = {}
-        for e in pool:
-            picked = {k: v for k, v in chosen.items() if k in combination + [e]}
-            tag = "".join(f"|{k}:{v}" for k, v in sorted(picked.items()))
+        for e, v in forms:
+            picked = {k: w for k, w in chosen.items() if k in combination}
+            if v:
+                picked[e] = v
+            tag = "".join(f"|{k}:{w}" for k, w in sorted(picked.items()))
             step_model = (model.augment(combination + [e], variants=picked) if picked
                           else model.augment(combination + [e]))
-            jobs[e] = (f"combination-{'+'.join(combination + [e])}{tag}", step_model)
+            jobs[e, v] = (f"combination-{'+'.join(combination + [e])}{tag}"
+                          f"{'|scratch' if current is scratch else ''}", step_model)
         shared = SharedRefits(ck, list(jobs.values()), data, current, seed, budget, workers)
         try:
-            for e in pool:
+            for e, v in forms:
                 if budget.expired():
                     stopped = True
                     break
-                bar.set_postfix_str(f"combine +{e}")
-                key, step_model = jobs[e]
+                bar.set_postfix_str(f"combine +{e}" + (f" ({v})" if v else ""))
+                key, step_model = jobs[e, v]
                 try:
                     fit = shared.fit(key, step_model, workers)
                     cand.append((replace(_score(sc, e, fit, current, screens.get(e, float("nan")),
-                                                final), variant=chosen.get(e, "")), fit))
+                                                final), variant=v), fit))
                     fits[fit.name] = fit
                 except BudgetExceeded:
                     stopped = True
@@ -568,6 +653,10 @@ def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBu
             break
         best, fit = max(cand, key=lambda c: _gain(sc, c[0]))
         combination.append(best.effect)
+        if best.variant:
+            chosen[best.effect] = best.variant
+        else:
+            chosen.pop(best.effect, None)
         steps.append(best)
         final = (best.calibration, best.holdout)
         current = fit

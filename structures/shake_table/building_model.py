@@ -31,7 +31,10 @@ softer than before it, and the next run starts stiffer again (``docs/shake_table
 
 The effects of a building act on each other's evidence (:attr:`interacting_effects`): output
 error carries every missing effect forward in the simulated motion, so the diagnosis's combination
-steps also try the effects whose gains pass the rule's rank tests but are alone too small.
+steps also try the effects whose gains pass the rule's rank tests but are alone too small and
+every history effect in both forms (carried and recovering), and the named effect's building is
+also fitted from scratch, the fit the calibration runs prefer standing for it and starting the
+combination (step 5 of :mod:`rrfrei.gap.diagnose`).
 """
 
 from __future__ import annotations
