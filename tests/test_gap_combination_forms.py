@@ -16,13 +16,11 @@ variant does not stand for ``slip`` alone; beside ``asymmetry`` only the variant
 
 from __future__ import annotations
 
-import hashlib
-
 import numpy as np
 
 from rrfrei.gap.diagnose import _forms, diagnose
 from rrfrei.io import ShearTest
-from tests.test_gap_robust import LinearFit, LinearModel
+from tests.test_gap_robust import LinearModel
 
 N = 600
 
@@ -51,49 +49,22 @@ REG = {
 class FormsLinear(LinearModel):
     """Force = b0 u + regressors; ``slip`` has a ``recovering`` variant that changes what is simulated."""
 
-    interacting_effects = True
+    regressors = REG
 
     def __init__(self, effects=(), *, interacting=True, calls=None, **kw):
         super().__init__(effects, calls=calls, **kw)
-        self.interacting = interacting
         self.interacting_effects = interacting
 
     def augment(self, effects, variants=None):
         names = [f"{e}:{variants[e]}" if variants and e in variants else e for e in effects]
-        return FormsLinear(self.effects + tuple(names), interacting=self.interacting, calls=self.calls)
+        return FormsLinear(self.effects + tuple(names), interacting=self.interacting_effects,
+                           calls=self.calls)
 
     def variants(self, effect):
         return ("recovering",) if effect == "slip" else ()
 
     def shape_variant(self, effect, variant):
         return False
-
-    def fit(self, data, *, seed=0, start=None, budget=None):
-        self.calls.append(self.name)
-        u = np.asarray(data.disp)
-        X = np.column_stack([u, *[REG[e](u) for e in self.effects]])
-        y = np.asarray(data.force)
-        beta, *_ = np.linalg.lstsq(X, y, rcond=None)
-        r = y - X @ beta
-        s2 = float(r @ r) / (y.size - X.shape[1])
-        L = np.linalg.cholesky(s2 * np.linalg.inv(X.T @ X))
-        B = beta + np.random.default_rng(seed).normal(size=(100, beta.size)) @ L.T
-        B[0] = beta
-        return FormsFit(self.effects, beta, B, np.sqrt(s2))
-
-    def checkpoint_key(self, data):
-        return hashlib.sha256(np.asarray(data.force).tobytes() + self.name.encode()).hexdigest()
-
-
-class FormsFit(LinearFit):
-    def predict(self, data):
-        u = np.asarray(data.disp)
-        X = np.column_stack([u, *[REG[e](u) for e in self.effects]])
-        F = self.B @ X.T
-        m = F.mean(axis=0)
-        from rrfrei.gap.model import Prediction
-        return Prediction(mean=m, lower=m - 2 * self.sigma, upper=m + 2 * self.sigma, draws=F,
-                          sigma=np.full(F.shape[0], self.sigma))
 
 
 def _data():

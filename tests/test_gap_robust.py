@@ -52,14 +52,15 @@ class ClockBudget(TimeBudget):
 
 
 class LinearFit(FitResult):
-    def __init__(self, effects, beta, B, sigma):
+    def __init__(self, effects, beta, B, sigma, regressors=None):
         self.effects, self.beta, self.B, self.sigma = tuple(effects), beta, B, float(sigma)
+        self.regressors = REGRESSORS if regressors is None else regressors
         self.noise = self.sigma
         self.name = "+".join(["linear", *self.effects])
         self.params = {f"b{i}": float(b) for i, b in enumerate(beta)}
 
     def predict(self, data) -> Prediction:
-        F = self.B @ _design(self.effects, data.disp).T
+        F = self.B @ _design(self.effects, data.disp, self.regressors).T
         m = F.mean(axis=0)
         return Prediction(mean=m, lower=m - 2 * self.sigma, upper=m + 2 * self.sigma, draws=F,
                           sigma=np.full(F.shape[0], self.sigma))
@@ -69,13 +70,17 @@ class LinearFit(FitResult):
         return -0.5 * (r / self.sigma) ** 2 - np.log(self.sigma) - 0.5 * np.log(2 * np.pi)
 
 
-def _design(effects, u) -> np.ndarray:
-    return np.column_stack([u, *[REGRESSORS[e](u) for e in effects]])
+def _design(effects, u, regressors=None) -> np.ndarray:
+    reg = REGRESSORS if regressors is None else regressors
+    return np.column_stack([u, *[reg[e](u) for e in effects]])
 
 
 class LinearModel(GapModel):
-    """force = b0 u + sum of effect regressors; ``fail``: effects whose fit raises LinAlgError
-    (``"*"``: every fit, the baseline too)."""
+    """force = b0 u + sum of effect regressors (``regressors``: effect -> function of u, default
+    :data:`REGRESSORS`); ``fail``: effects whose fit raises LinAlgError (``"*"``: every fit, the
+    baseline too)."""
+
+    regressors = REGRESSORS
 
     def __init__(self, effects=(), *, clock=None, cost=0.0, fail=(), calls=None):
         self.effects, self.clock, self.cost, self.fail = tuple(effects), clock, cost, set(fail)
@@ -100,7 +105,7 @@ class LinearModel(GapModel):
             budget.check()
         if "*" in self.fail or set(self.effects) & self.fail:
             raise np.linalg.LinAlgError("Singular matrix")
-        X = _design(self.effects, np.asarray(data.disp))
+        X = _design(self.effects, np.asarray(data.disp), self.regressors)
         y = np.asarray(data.force)
         beta, *_ = np.linalg.lstsq(X, y, rcond=None)
         r = y - X @ beta
@@ -108,7 +113,7 @@ class LinearModel(GapModel):
         L = np.linalg.cholesky(s2 * np.linalg.inv(X.T @ X))
         B = beta + np.random.default_rng(seed).normal(size=(100, beta.size)) @ L.T
         B[0] = beta
-        return LinearFit(self.effects, beta, B, np.sqrt(s2))
+        return LinearFit(self.effects, beta, B, np.sqrt(s2), self.regressors)
 
     def checkpoint_key(self, data):
         return hashlib.sha256(np.asarray(data.force).tobytes() + self.name.encode()).hexdigest()
@@ -118,7 +123,8 @@ class LinearModel(GapModel):
                 "sigma": np.array(fit.sigma)}
 
     def restore(self, state):
-        return LinearFit([str(e) for e in state["effects"]], state["beta"], state["B"], float(state["sigma"]))
+        return LinearFit([str(e) for e in state["effects"]], state["beta"], state["B"], float(state["sigma"]),
+                         self.regressors)
 
 
 def _tests(asym: float = 0.3) -> list[ShearTest]:
