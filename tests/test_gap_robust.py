@@ -54,7 +54,7 @@ class ClockBudget(TimeBudget):
 class LinearFit(FitResult):
     def __init__(self, effects, beta, B, sigma, regressors=None):
         self.effects, self.beta, self.B, self.sigma = tuple(effects), beta, B, float(sigma)
-        self.regressors = REGRESSORS if regressors is None else regressors
+        self.regressors = regressors  # None: the module's REGRESSORS, read when used
         self.noise = self.sigma
         self.name = "+".join(["linear", *self.effects])
         self.params = {f"b{i}": float(b) for i, b in enumerate(beta)}
@@ -76,11 +76,11 @@ def _design(effects, u, regressors=None) -> np.ndarray:
 
 
 class LinearModel(GapModel):
-    """force = b0 u + sum of effect regressors (``regressors``: effect -> function of u, default
-    :data:`REGRESSORS`); ``fail``: effects whose fit raises LinAlgError (``"*"``: every fit, the
-    baseline too)."""
+    """force = b0 u + sum of effect regressors (``regressors``: effect -> function of u; None, the
+    default: :data:`REGRESSORS` as it is when a fit runs); ``fail``: effects whose fit raises
+    LinAlgError (``"*"``: every fit, the baseline too)."""
 
-    regressors = REGRESSORS
+    regressors = None
 
     def __init__(self, effects=(), *, clock=None, cost=0.0, fail=(), calls=None):
         self.effects, self.clock, self.cost, self.fail = tuple(effects), clock, cost, set(fail)
