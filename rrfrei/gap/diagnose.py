@@ -517,6 +517,13 @@ def _alternatives(sc: _Scorer, fits: dict, ranking: Sequence[EffectScore], first
     return out
 
 
+def _augmented(model: GapModel, effects: Sequence[str], variants: Mapping[str, str]) -> GapModel:
+    """``model`` with ``effects``, each in its variant of ``variants`` where it has one; without
+    variants the plain ``augment(effects)``, the signature every model takes (only a model with
+    variants takes ``variants=``)."""
+    return model.augment(effects, variants=variants) if variants else model.augment(effects)
+
+
 def _from_scratch(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBudget, seed: int,
                   first: EffectScore, fits: dict, notes: list) -> FitResult | None:
     """The named effect's model fitted from scratch (the search the baseline had, ``start=None``),
@@ -538,8 +545,7 @@ def _from_scratch(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: T
         return None
     step = f"scratch-{effect_step(first.effect)}" + (f":{first.variant}" if first.variant else "")
     try:
-        named = (model.augment([first.effect], variants={first.effect: first.variant}) if first.variant
-                 else model.augment([first.effect]))
+        named = _augmented(model, [first.effect], {first.effect: first.variant} if first.variant else {})
         alt = _fit_or_restore(ck, step, named, data, budget, seed=seed)
         gain = float(np.sum(sc.loco(alt, blocks=False)) - np.sum(sc.loco(fit, blocks=False)))
     except BudgetExceeded:
@@ -616,8 +622,7 @@ def _combine(model: GapModel, sc: _Scorer, ck: _Checkpoint, data, budget: TimeBu
             if v:
                 picked[e] = v
             tag = "".join(f"|{k}:{w}" for k, w in sorted(picked.items()))
-            step_model = (model.augment(combination + [e], variants=picked) if picked
-                          else model.augment(combination + [e]))
+            step_model = _augmented(model, combination + [e], picked)
             jobs[e, v] = (f"combination-{'+'.join(combination + [e])}{tag}"
                           f"{'|scratch' if current is scratch else ''}", step_model)
         shared = SharedRefits(ck, list(jobs.values()), data, current, seed, budget, workers)
